@@ -1,0 +1,1 @@
+"""Drivers for the real instruments; each speaks its instrument's wire protocol."""

@@ -1,0 +1,106 @@
+"""The ``gelrig`` console entry point: parses the command line and dispatches to a command.
+
+A composition root (design.md): it may import every package; nothing imports it. Every
+user-facing failure ends as one line on stderr and exit code 2 (bad input) or 1 (a fault
+while running); ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from typing import NoReturn
+
+from instrument.errors import ConfigError, GelrigError
+
+#: Simulators reachable through ``gelrig sim serve NAME``: module with add_arguments / run.
+SIMULATOR_SERVERS = {
+    "kdc101": "simulators.kdc101.serve",
+    "usb6001": "simulators.usb6001.serve",
+    "mcr501": "simulators.mcr501.serve",
+}
+
+
+class UsageError(GelrigError):
+    """Bad command-line usage; reported as one line with exit code 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: {message}")
+
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def build_parser() -> Parser:
+    from gelrig.commands import demo, fit, model
+
+    parser = Parser(prog="gelrig", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", parser_class=Parser, metavar="COMMAND")
+    model.register(sub)
+    fit.register(sub)
+    demo.register(sub)
+    _register_sim(sub)
+    return parser
+
+
+def _register_sim(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    import importlib
+
+    sim = sub.add_parser("sim", help="simulated instruments")
+    sim_sub = sim.add_subparsers(dest="sim_command", parser_class=Parser, metavar="ACTION")
+    sim_sub.required = True
+    serve = sim_sub.add_parser("serve", help="serve a simulated instrument on its wire protocol")
+    which = serve.add_subparsers(dest="instrument", parser_class=Parser, metavar="INSTRUMENT")
+    which.required = True
+    for name, module_name in SIMULATOR_SERVERS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name is None or not module_name.startswith(exc.name):
+                raise
+            continue  # that simulator is not built yet
+        p = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
+        module.add_arguments(p)
+        p.set_defaults(handler=module.run)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args_list
+    try:
+        parser = build_parser()
+        args = parser.parse_args(args_list)
+        if args.version:
+            from gelrig import __version__
+
+            print(f"gelrig {__version__}")
+            return 0
+        handler: Handler | None = getattr(args, "handler", None)
+        if handler is None:
+            parser.print_help()
+            return 2
+        return handler(args)
+    except (UsageError, ConfigError) as exc:
+        if debug:
+            raise
+        print(f"gelrig: error: {exc}", file=sys.stderr)
+        return 2
+    except GelrigError as exc:
+        if debug:
+            raise
+        print(f"gelrig: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("gelrig: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

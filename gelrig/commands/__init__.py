@@ -1,0 +1,1 @@
+"""One module per ``gelrig`` subcommand; each has ``register(subparsers)``."""

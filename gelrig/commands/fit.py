@@ -1,0 +1,7 @@
+"""gelrig fit (being built)."""
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the subcommand."""

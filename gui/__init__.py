@@ -1,0 +1,1 @@
+"""The Qt application at the rig (PySide6 + pyqtgraph). Only this package imports Qt."""

@@ -1,0 +1,54 @@
+"""The typed errors every layer raises, so callers can tell a user exactly what went wrong."""
+
+from __future__ import annotations
+
+
+class GelrigError(Exception):
+    """Base of every error gelrig raises on purpose."""
+
+
+class ConfigError(GelrigError, ValueError):
+    """A rig file, protocol file, CLI option or data file holds a value that is not allowed.
+
+    The message names the source (file or option), the field, the value and what is allowed.
+    """
+
+    def __init__(self, field: str, value: object, allowed: str, source: str | None = None):
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        self.source = source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}{field} = {value!r}: {allowed}")
+
+
+class InstrumentError(GelrigError):
+    """Something went wrong talking to an instrument."""
+
+
+class InstrumentTimeout(InstrumentError):
+    """The instrument did not answer in time."""
+
+
+class FramingError(InstrumentError):
+    """Bytes on the wire that do not form a valid message of the instrument's protocol."""
+
+
+class DeviceErrorReply(InstrumentError):
+    """The instrument answered with an error reply."""
+
+    def __init__(self, message: str, code: int | None = None):
+        self.code = code
+        super().__init__(message)
+
+
+class Disconnected(InstrumentError):
+    """The transport to the instrument closed or vanished."""
+
+
+class LimitError(GelrigError):
+    """A requested move or setting lies outside the configured safety limits; nothing moved."""
+
+
+class InterlockTripped(GelrigError):
+    """An interlock (force, torque, travel, overlap) tripped; motion was stopped."""

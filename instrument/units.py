@@ -1,0 +1,59 @@
+"""Unit-bearing strings at the edges ("0.78 mm", "4 kPa", "2000 s") -> SI floats inside.
+
+pint does the parsing and the dimension check; a bare number is taken as SI already.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Any
+
+from instrument.errors import ConfigError
+
+
+@lru_cache(maxsize=1)
+def _registry() -> Any:
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def to_si(value: str | float | int, unit: str, field: str, source: str | None = None) -> float:
+    """Convert ``value`` to the SI ``unit`` ('m', 'Pa', 's', 'm/s', 'N', 'N*m', '1/s', 'Hz').
+
+    Raises ConfigError naming ``field`` if the value is not a number of that dimension.
+    """
+    if isinstance(value, bool):
+        raise ConfigError(field, value, f"expected a number in {unit}", source)
+    if isinstance(value, int | float):
+        out = float(value)
+    else:
+        text = str(value).strip()
+        try:
+            out = float(text)
+        except ValueError:
+            out = _parse_with_units(text, unit, field, source)
+    if not math.isfinite(out):
+        raise ConfigError(field, value, f"expected a finite number in {unit}", source)
+    return out
+
+
+def _parse_with_units(text: str, unit: str, field: str, source: str | None) -> float:
+    import pint
+
+    ureg = _registry()
+    try:
+        q = ureg.Quantity(text)
+        return float(q.to(unit).magnitude)
+    except pint.DimensionalityError:
+        raise ConfigError(field, text, f"expected a quantity in {unit} (dimension mismatch)", source)
+    except Exception:
+        raise ConfigError(field, text, f"expected a number or a quantity like '1.5 {unit}'", source)
+
+
+def positive(value: float, field: str, unit: str, source: str | None = None) -> float:
+    """Return ``value`` if > 0, else raise ConfigError naming the field."""
+    if not value > 0:
+        raise ConfigError(field, value, f"must be > 0 {unit}".rstrip(), source)
+    return value

@@ -1,0 +1,1 @@
+"""The protocol runner and the paper's sequences (contact search, ladder, hold)."""
