@@ -30,7 +30,7 @@ class Parser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line and exit code 2."""
 
     def error(self, message: str) -> NoReturn:
-        raise UsageError(f"{self.prog}: {message}")
+        raise UsageError(f"{self.prog}: error: {message}")
 
 
 Handler = Callable[[argparse.Namespace], int]
@@ -50,7 +50,7 @@ def build_parser() -> Parser:
     return parser
 
 
-def _register_sim(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def _register_sim(sub: argparse._SubParsersAction) -> None:
     import importlib
 
     sim = sub.add_parser("sim", help="simulated instruments")
@@ -87,7 +87,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help()
             return 2
         return handler(args)
-    except (UsageError, ConfigError) as exc:
+    except UsageError as exc:
+        if debug:
+            raise
+        print(exc, file=sys.stderr)
+        return 2
+    except ConfigError as exc:
         if debug:
             raise
         print(f"gelrig: error: {exc}", file=sys.stderr)

@@ -57,7 +57,7 @@ def ramp_hold(
     t_ramp = depth / speed
     n_ramp = max(1, math.ceil(t_ramp / dt - 1e-9))
     ramp_t = np.linspace(0.0, t_ramp, n_ramp + 1)
-    n_hold = int(math.floor(hold / dt + 1e-9))
+    n_hold = math.floor(hold / dt + 1e-9)
     hold_t = t_ramp + dt * np.arange(1, n_hold + 1)
     t = np.concatenate((ramp_t, hold_t))
     delta = ramp_hold_overlap(t, depth, speed)

@@ -135,10 +135,10 @@ def shear_pass(
         dt = duration / 2000.0
     if not (math.isfinite(dt) and dt > 0):
         raise ConfigError("dt", dt, "must be > 0 s")
-    n = int(math.floor(duration / dt + 1e-9)) + 1
-    t = np.arange(n) * dt
+    n = math.floor(duration / dt + 1e-9) + 1
+    t = np.arange(n, dtype=float) * dt
     psi = start - speed * t
     delta = geometry.overlap(psi)
     f_perp = NormalContact(material, geometry.radius).block(t, delta)
     f_h, f_v = resolve_forces(f_perp, psi, geometry.h, mu)
-    return ShearPass(t, psi, delta, f_perp, f_h, f_v)
+    return ShearPass(t, np.asarray(psi, dtype=float), delta, f_perp, f_h, f_v)

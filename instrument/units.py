@@ -47,9 +47,11 @@ def _parse_with_units(text: str, unit: str, field: str, source: str | None) -> f
         q = ureg.Quantity(text)
         return float(q.to(unit).magnitude)
     except pint.DimensionalityError:
-        raise ConfigError(field, text, f"expected a quantity in {unit} (dimension mismatch)", source)
+        allowed = f"expected a quantity in {unit} (dimension mismatch)"
+        raise ConfigError(field, text, allowed, source) from None
     except Exception:
-        raise ConfigError(field, text, f"expected a number or a quantity like '1.5 {unit}'", source)
+        allowed = f"expected a number or a quantity like '1.5 {unit}'"
+        raise ConfigError(field, text, allowed, source) from None
 
 
 def positive(value: float, field: str, unit: str, source: str | None = None) -> float:

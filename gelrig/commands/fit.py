@@ -1,7 +1,32 @@
-"""gelrig fit (being built)."""
+"""``gelrig fit relaxation FILE.csv``: the hold's Prony fit as JSON on stdout."""
+
+from __future__ import annotations
 
 import argparse
+import json
+
+from gelrig.commands._args import poisson, quantity
+from instrument.analysis import fit_hold
+from instrument.csvio import read_columns
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the subcommand."""
+def register(sub: argparse._SubParsersAction) -> None:
+    fit = sub.add_parser("fit", help="fit recorded or modelled data")
+    which = fit.add_subparsers(dest="fit", metavar="WHAT")
+    which.required = True
+    relax = which.add_parser("relaxation", help="Prony fit of G(t) over the hold of a CSV")
+    relax.add_argument("file", metavar="FILE.csv", help="columns t_s,force_N (and delta_m)")
+    relax.add_argument("--radius", required=True, type=quantity("m"), help="sphere radius (m)")
+    relax.add_argument("--depth", required=True, type=quantity("m"), help="hold overlap (m)")
+    relax.add_argument("--nu", type=poisson, default=0.5, help="Poisson ratio (default 0.5)")
+    relax.add_argument("--terms", type=int, choices=(1, 2), default=1,
+                       help="relaxation terms (default 1)")
+    relax.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    cols = read_columns(args.file, ["t_s", "force_N"], ["delta_m"])
+    fit = fit_hold(cols["t_s"], cols["force_N"], args.radius, args.depth, args.nu, args.terms,
+                   delta=cols.get("delta_m"))
+    print(json.dumps(fit.as_dict(), indent=2))
+    return 0

@@ -1,7 +1,90 @@
-"""gelrig model (being built)."""
+"""``gelrig model compression|shear``: the contact model written to CSV."""
+
+from __future__ import annotations
 
 import argparse
 
+from gelrig.commands._args import add_material, quantity
+from instrument.compression import ramp_hold
+from instrument.contact import Material
+from instrument.csvio import write_columns
+from instrument.errors import ConfigError
+from instrument.sliding import SlidingGeometry, shear_pass
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the subcommand."""
+
+def register(sub: argparse._SubParsersAction) -> None:
+    model = sub.add_parser("model", help="compute the contact model and write CSV")
+    which = model.add_subparsers(dest="model", metavar="EXPERIMENT")
+    which.required = True
+
+    comp = which.add_parser("compression", help="plate ramp from first touch, then a hold")
+    comp.add_argument("--radius", required=True, type=quantity("m"), help="sphere radius (m)")
+    comp.add_argument("--depth", required=True, type=quantity("m"), help="hold overlap (m)")
+    comp.add_argument("--rate", required=True, type=_rate, metavar="V",
+                      help="plate speed (m/s, or '37 um/s'); a strain rate like '0.002/s' "
+                           "is taken relative to the diameter")
+    comp.add_argument("--hold", required=True, type=quantity("s", strict=False),
+                      help="hold duration (s)")
+    add_material(comp)
+    comp.add_argument("--dt", type=quantity("s"), default=0.01, help="sample step (s, 0.01)")
+    comp.add_argument("--out", required=True, help="CSV file: t_s,delta_m,force_N")
+    comp.set_defaults(handler=run_compression)
+
+    shear = which.add_parser("shear", help="one pass of the upper sphere over the lower one")
+    shear.add_argument("--r1", required=True, type=quantity("m"), help="upper sphere radius (m)")
+    shear.add_argument("--r2", required=True, type=quantity("m"), help="lower sphere radius (m)")
+    shear.add_argument("--delta-max", required=True, type=quantity("m"), metavar="DM",
+                       help="maximum overlap (m)")
+    shear.add_argument("--speed", required=True, type=quantity("m/s"),
+                       help="linear sliding speed at the arm (m/s)")
+    add_material(shear)
+    shear.add_argument("--mu", type=quantity("", strict=False), default=0.0,
+                       help="Coulomb friction coefficient (default 0)")
+    shear.add_argument("--dt", type=quantity("s"), default=None,
+                       help="sample step (s; default: travel / 2000 samples)")
+    shear.add_argument("--margin", type=quantity("m", strict=False), default=0.0,
+                       help="travel before first touch and after psi0 on the far side (m)")
+    shear.add_argument("--out", required=True, help="CSV: t_s,psi_m,delta_m,f_perp_N,f_h_N,f_v_N")
+    shear.set_defaults(handler=run_shear)
+
+
+def _rate(text: str) -> tuple[str, float]:
+    """A speed in m/s, or a strain rate in 1/s (resolved once the radius is known)."""
+    try:
+        return "speed", quantity("m/s")(text)
+    except argparse.ArgumentTypeError as speed_error:
+        try:
+            return "strain", quantity("1/s")(text)
+        except argparse.ArgumentTypeError:
+            raise speed_error from None
+
+
+def _material(args: argparse.Namespace) -> Material:
+    return Material(args.g_e, tuple(args.relax), args.nu)
+
+
+def run_compression(args: argparse.Namespace) -> int:
+    kind, value = args.rate
+    speed = value if kind == "speed" else value * 2.0 * args.radius
+    if args.depth >= args.radius:
+        raise ConfigError("--depth", args.depth, f"must be < --radius ({args.radius:g} m)")
+    record = ramp_hold(args.radius, args.depth, speed, args.hold, _material(args), dt=args.dt)
+    path = write_columns(args.out, {"t_s": record.t, "delta_m": record.delta,
+                                    "force_N": record.force})
+    print(f"wrote {record.t.size} samples (ramp {record.t_hold:.4g} s at {speed:.4g} m/s, "
+          f"hold {args.hold:g} s; peak force {record.force.max():.4g} N) to {path}")
+    return 0
+
+
+def run_shear(args: argparse.Namespace) -> int:
+    try:
+        geometry = SlidingGeometry(args.r1, args.r2, args.delta_max)
+    except ConfigError as exc:
+        option = f"--{exc.field.lower().replace('_', '-')}"
+        raise ConfigError(option, exc.value, exc.allowed) from None
+    sp = shear_pass(geometry, _material(args), args.speed, args.mu, args.dt, args.margin)
+    path = write_columns(args.out, {"t_s": sp.t, "psi_m": sp.psi, "delta_m": sp.delta,
+                                    "f_perp_N": sp.f_perp, "f_h_N": sp.f_h, "f_v_N": sp.f_v})
+    print(f"wrote {sp.t.size} samples (l_g {geometry.l_g * 1e3:.4g} mm, peak F_h "
+          f"{sp.f_h.max():.4g} N, peak F_v {sp.f_v.max():.4g} N) to {path}")
+    return 0
