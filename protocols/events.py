@@ -1,0 +1,156 @@
+"""The one event stream of a run: typed events and a bus that subscribers listen on.
+
+The runner publishes; the CLI's progress bars, the data store and the GUI's plots subscribe.
+None of them reaches into another (design.md principle 7).
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from instrument.contact import FloatArray
+
+log = logging.getLogger(__name__)
+
+
+class RunState(enum.Enum):
+    """Where a run is."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    PAUSED = "paused"
+    ABORTING = "aborting"
+    COMPLETED = "completed"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+    @property
+    def finished(self) -> bool:
+        return self in (RunState.COMPLETED, RunState.ABORTED, RunState.FAILED)
+
+
+@dataclass(frozen=True)
+class Event:
+    """Base of every event; ``t`` is the clock time (s) at which it was published."""
+
+    t: float
+
+
+@dataclass(frozen=True)
+class StepStarted(Event):
+    index: int
+    name: str
+    kind: str
+    params: Mapping[str, Any]
+    #: column name -> unit of the samples this step will publish
+    columns: Mapping[str, str]
+
+
+@dataclass(frozen=True)
+class Samples(Event):
+    """A block of samples of the current step, one array per column (SI units)."""
+
+    index: int
+    data: Mapping[str, FloatArray]
+
+    def __len__(self) -> int:
+        return len(next(iter(self.data.values()))) if self.data else 0
+
+
+@dataclass(frozen=True)
+class Progress(Event):
+    index: int
+    fraction: float
+    elapsed: float
+    remaining: float
+    message: str = ""
+    values: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StepFinished(Event):
+    index: int
+    name: str
+    status: str  # "completed" | "aborted" | "failed"
+    results: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StateChanged(Event):
+    old: RunState
+    new: RunState
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class InterlockTrip(Event):
+    interlock: str
+    value: float
+    limit: float
+    unit: str
+    message: str
+
+
+@dataclass(frozen=True)
+class Fault(Event):
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True)
+class Finished(Event):
+    state: RunState
+    reason: str = ""
+
+
+Subscriber = Callable[[Event], None]
+
+
+class EventBus:
+    """Synchronous publish/subscribe, safe to use from several threads.
+
+    A *critical* subscriber (the data store) propagates its errors to the publisher, which
+    stops the run; an ordinary one (a plot, a progress bar) is logged and kept, so a display
+    can never lose data.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._subscribers: list[tuple[Subscriber, bool]] = []
+
+    def subscribe(self, subscriber: Subscriber, critical: bool = False) -> Callable[[], None]:
+        """Add a subscriber; returns a function that removes it."""
+        entry = (subscriber, critical)
+        with self._lock:
+            self._subscribers.append(entry)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if entry in self._subscribers:
+                    self._subscribers.remove(entry)
+
+        return unsubscribe
+
+    def publish(self, event: Event) -> None:
+        with self._lock:
+            subscribers = list(self._subscribers)
+        for subscriber, critical in subscribers:
+            if critical:
+                subscriber(event)
+                continue
+            try:
+                subscriber(event)
+            except Exception:
+                log.exception("event subscriber %r failed on %s", subscriber, type(event).__name__)
+
+
+def as_columns(**columns: FloatArray | float) -> dict[str, FloatArray]:
+    """Build a Samples payload, turning scalars into one-element arrays."""
+    return {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in columns.items()}
