@@ -1,0 +1,255 @@
+"""The load-cell force input through an NI USB-6001 and the official ``nidaqmx`` API.
+
+The same class drives a local device (NI-DAQmx installed) or a device behind an NI gRPC
+Device Server, real or simulated: only the ``grpc_options`` differ. Hardware-timed continuous
+sampling; blocks are read with the stream reader into preallocated arrays, timestamped on the
+injected clock from the sample index (sample k at start + k / rate), converted to newtons
+through the calibration chain and the tare.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+
+import grpc
+import nidaqmx
+import numpy as np
+from nidaqmx.constants import AcquisitionType, TerminalConfiguration
+from nidaqmx.stream_readers import AnalogSingleChannelReader
+
+from drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
+from drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
+from instrument.clock import Clock
+from instrument.errors import ConfigError, InstrumentError
+from instrument.loadcell import (
+    AcquisitionTimeoutError,
+    ForceBlock,
+    ForceOverRangeError,
+    LoadCellChain,
+)
+
+#: Fallback device limit (S/s aggregate) if the device does not report its maximum rate.
+DEFAULT_MAX_RATE = 20_000.0
+_TERMINALS = {"RSE": TerminalConfiguration.RSE, "DIFF": TerminalConfiguration.DIFF}
+
+
+def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, grpc.Channel | None]:
+    """Session options for ``address``: "local" (NI-DAQmx here) or "grpc://host:port".
+
+    Returns the options and the channel the caller then owns (None for local).
+    """
+    text = address.strip()
+    if text.lower() in ("", "local"):
+        return None, None
+    target = text[len("grpc://"):] if text.lower().startswith("grpc://") else text
+    if ":" not in target:
+        raise ConfigError("address", address, "allowed: local, or grpc://HOST:PORT")
+    channel = grpc.insecure_channel(target)
+    return nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name=""), channel
+
+
+class Usb6001ForceSensor:
+    """A :class:`~instrument.loadcell.ForceSensor` on one USB-6001 analog input.
+
+    Constructing it connects: it creates the DAQmx task and the voltage channel (min -10 V,
+    max +10 V, passed explicitly), so a missing driver or device fails here with
+    DaqDriverNotFoundError / DaqDeviceNotFoundError.
+    """
+
+    def __init__(
+        self,
+        config: Usb6001Config,
+        chain: LoadCellChain,
+        clock: Clock,
+        grpc_options: nidaqmx.GrpcSessionOptions | None = None,
+        *,
+        owned_channel: grpc.Channel | None = None,
+    ):
+        self.config = config
+        self.chain = chain
+        self.clock = clock
+        self._grpc = grpc_options
+        self._owned_channel = owned_channel
+        self._zero = chain.offset
+        self._rate = 0.0
+        self._running = False
+        self._t_start = 0.0
+        self._index = 0
+        self._task: nidaqmx.Task | None = None
+        with self._errors():
+            task = nidaqmx.Task(grpc_options=grpc_options)
+            try:
+                task.ai_channels.add_ai_voltage_chan(
+                    config.physical_channel,
+                    terminal_config=_TERMINALS[config.terminal],
+                    min_val=-RANGE_VOLTS,
+                    max_val=RANGE_VOLTS,
+                )
+                device = task.devices[0]
+                self._product = str(device.product_type)
+                self._serial = int(device.serial_num)
+            except BaseException:
+                with suppress(*NIDAQMX_ERRORS):
+                    task.close()
+                raise
+        self._task = task
+        self._reader = AnalogSingleChannelReader(task.in_stream)
+
+    @classmethod
+    def open(
+        cls, address: str, config: Usb6001Config, chain: LoadCellChain, clock: Clock
+    ) -> Usb6001ForceSensor:
+        """Connect through ``address`` ("local" or "grpc://host:port"); see grpc_options_for."""
+        options, channel = grpc_options_for(address)
+        try:
+            return cls(config, chain, clock, options, owned_channel=channel)
+        except BaseException:
+            if channel is not None:
+                channel.close()
+            raise
+
+    @contextmanager
+    def _errors(self) -> Iterator[None]:
+        try:
+            yield
+        except NIDAQMX_ERRORS as exc:
+            raise translate(exc, self.config.device) from exc
+
+    @property
+    def task(self) -> nidaqmx.Task:
+        if self._task is None:
+            raise InstrumentError(f"USB-6001 {self.config.device}: the sensor is closed")
+        return self._task
+
+    @property
+    def rate(self) -> float:
+        return self._rate
+
+    @property
+    def zero_volts(self) -> float:
+        """Input voltage (V) taken as zero force: the chain's offset until a tare."""
+        return self._zero
+
+    def identity(self) -> dict[str, str]:
+        return {
+            "instrument": f"NI {self._product}",
+            "device": self.config.device,
+            "serial": f"{self._serial:X}",
+            "channel": self.config.physical_channel,
+            "terminal": self.config.terminal,
+            "transport": "grpc" if self._grpc is not None else "local NI-DAQmx",
+        }
+
+    def max_rate(self) -> float:
+        """The device's sample-rate limit for this task (S/s)."""
+        with self._errors():
+            try:
+                return float(self.task.timing.samp_clk_max_rate)
+            except nidaqmx.errors.DaqError:
+                return DEFAULT_MAX_RATE
+
+    def start(self, rate_hz: float) -> None:
+        """Start continuous hardware-timed sampling at ``rate_hz``."""
+        limit = self.max_rate()
+        if not (math.isfinite(rate_hz) and MIN_RATE <= rate_hz <= limit):
+            raise ConfigError("rate", rate_hz, f"allowed [{MIN_RATE:g}, {limit:g}] Hz")
+        if self._running:
+            self.stop()
+        buffer = max(2, math.ceil(rate_hz * self.config.buffer_seconds))
+        with self._errors():
+            self.task.timing.cfg_samp_clk_timing(
+                rate_hz, sample_mode=AcquisitionType.CONTINUOUS, samps_per_chan=buffer
+            )
+            self._t_start = self.clock.now()
+            self.task.start()
+        self._rate = float(rate_hz)
+        self._index = 0
+        self._running = True
+
+    def read_block(self, n: int | None = None, timeout: float | None = None) -> ForceBlock:
+        """The next ``n`` samples (None: all available now), waiting up to ``timeout`` (s).
+
+        The default timeout is the block's duration plus ``config.read_margin``.
+        """
+        if not self._running:
+            raise InstrumentError(f"USB-6001 {self.config.device}: read before start()")
+        with self._errors():
+            if n is None:
+                n = int(self.task.in_stream.avail_samp_per_chan)
+        if n < 0:
+            raise ValueError(f"cannot read {n} samples")
+        if timeout is None:
+            timeout = n / self._rate + self.config.read_margin
+        data = np.empty(n)
+        try:
+            if n:
+                self._reader.read_many_sample(data, n, timeout=timeout)
+        except nidaqmx.errors.DaqReadError as exc:
+            if exc.error_code != SAMPLES_NOT_YET_AVAILABLE:
+                raise translate(exc, self.config.device) from exc
+            got = exc.samps_per_chan_read
+            block = self._block(data[:got])
+            raise AcquisitionTimeoutError(
+                f"USB-6001 {self.config.device}: {got} of {n} samples arrived within "
+                f"{timeout:g} s", block) from exc
+        except NIDAQMX_ERRORS as exc:
+            raise translate(exc, self.config.device) from exc
+        block = self._block(data)
+        if block.any_over_range and self.config.on_over_range == "raise":
+            bad = np.flatnonzero(block.over_range)
+            raise ForceOverRangeError(
+                f"USB-6001 {self.config.device}: {bad.size} of {n} samples beyond "
+                f"+-{self.config.over_range_volts:g} V (first at t = {block.t[bad[0]]:.6g} s, "
+                f"{block.volts[bad[0]]:+.4f} V): the input clipped or is out of range", block)
+        return block
+
+    def _block(self, volts: np.ndarray) -> ForceBlock:
+        """Timestamp and convert samples that were just read; advance the sample index."""
+        k = self._index + np.arange(volts.size, dtype=float)
+        self._index += volts.size
+        return ForceBlock(
+            t=self._t_start + k / self._rate,
+            force=self.chain.newtons(volts, self._zero),
+            volts=volts,
+            over_range=np.abs(volts) > self.config.over_range_volts,
+        )
+
+    def tare(self, duration: float = 1.0) -> float:
+        """Zero on the mean input over ``duration`` (s) of samples; return the removed force (N).
+
+        Needs a running acquisition and no load on the cell.
+        """
+        if not self._running:
+            raise InstrumentError(f"USB-6001 {self.config.device}: tare before start()")
+        block = self.read_block(max(1, round(duration * self._rate)))
+        self._zero = float(np.mean(block.volts))
+        return (self._zero - self.chain.offset) / self.chain.sensitivity
+
+    def stop(self) -> None:
+        if self._running and self._task is not None:
+            self._running = False
+            with self._errors():
+                self._task.stop()
+
+    def close(self) -> None:
+        """Stop, release the task, and close a gRPC channel this sensor opened."""
+        try:
+            self.stop()
+        finally:
+            task, self._task = self._task, None
+            try:
+                if task is not None:
+                    with self._errors():
+                        task.close()
+            finally:
+                if self._owned_channel is not None:
+                    self._owned_channel.close()
+                    self._owned_channel = None
+
+    def __enter__(self) -> Usb6001ForceSensor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,202 @@
+"""The load-cell chain (load cell -> conditioner -> ADC input) and the force-sensor contract.
+
+Chain of the plate-compression rig (instruments.md): a bridge load cell of rated ``capacity``
+and rated output (V per V of excitation), excited at ``excitation`` volts, amplified by a
+conditioner of ``gain`` with an output ``offset``; the conditioner's output reaches the ADC::
+
+    volts = offset + force * rated_output * excitation * gain / capacity
+
+Rated output and the conditioner's gain, offset and bandwidth are UNVERIFIED for the rig
+(docs/decisions/0010): they are configuration, with defaults that map the rated load to 10 V.
+
+:class:`ForceSensor` is what the protocol runner programs against; a driver meets it (the
+USB-6001 driver in drivers/usb6001) and so can any test double.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from instrument.errors import ConfigError, InstrumentError, InstrumentTimeout
+from instrument.units import to_si
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class LoadCellChain:
+    """Calibration of the force chain; SI inside (N, V, V/V, Hz).
+
+    ``rated_output`` is the bridge output at rated load per volt of excitation (2 mV/V is
+    stored as 0.002). ``bandwidth`` is the conditioner's -3 dB frequency (a simulator models it
+    as one pole; a driver does not use it).
+    """
+
+    capacity: float = 2.5
+    rated_output: float = 2e-3
+    excitation: float = 5.0
+    gain: float = 1000.0
+    offset: float = 0.0
+    bandwidth: float = 1000.0
+
+    def __post_init__(self) -> None:
+        for spec in _FIELDS:
+            spec.check(getattr(self, spec.name), None)
+
+    @property
+    def sensitivity(self) -> float:
+        """Volts at the conditioner output per newton (V/N)."""
+        return self.rated_output * self.excitation * self.gain / self.capacity
+
+    @property
+    def full_scale_volts(self) -> float:
+        """Conditioner output at rated load, offset excluded (V)."""
+        return self.rated_output * self.excitation * self.gain
+
+    def volts(self, force: ArrayLike) -> FloatArray:
+        """Conditioner output (V) for a force (N)."""
+        return self.offset + np.asarray(force, dtype=float) * self.sensitivity
+
+    def newtons(self, volts: ArrayLike, zero: float | None = None) -> FloatArray:
+        """Force (N) for a conditioner output (V); ``zero`` (V) replaces the nominal offset.
+
+        A tare measures ``zero`` with no load on the cell.
+        """
+        z = self.offset if zero is None else zero
+        return (np.asarray(volts, dtype=float) - z) / self.sensitivity
+
+    @classmethod
+    def from_mapping(
+        cls, mapping: Mapping[str, object], source: str | None = None
+    ) -> LoadCellChain:
+        """Build from a rig-file table; values may carry units ("2 mV/V", "5 V", "1 kHz").
+
+        Unknown keys and out-of-range values raise ConfigError naming field, value and range.
+        """
+        known = {spec.name: spec for spec in _FIELDS}
+        for key in mapping:
+            if key not in known:
+                raise ConfigError(key, mapping[key], f"unknown field; allowed: {', '.join(known)}",
+                                  source)
+        values: dict[str, float] = {}
+        for key, raw in mapping.items():
+            spec = known[key]
+            if not isinstance(raw, str | int | float):
+                raise ConfigError(key, raw, f"expected a number in {spec.unit}", source)
+            value = to_si(raw, spec.unit, key, source)
+            values[key] = spec.check(value, source)
+        return cls(**values)
+
+
+@dataclass(frozen=True)
+class _Field:
+    """One calibration field: SI unit and allowed interval (low open or closed)."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    low_open: bool = True
+
+    def check(self, value: float, source: str | None) -> float:
+        ok_low = value > self.low if self.low_open else value >= self.low
+        if not (isinstance(value, int | float) and math.isfinite(value) and ok_low
+                and value <= self.high):
+            bracket = "(" if self.low_open else "["
+            raise ConfigError(self.name, value,
+                              f"allowed {bracket}{self.low:g}, {self.high:g}] {self.unit}", source)
+        return float(value)
+
+
+_FIELDS = (
+    _Field("capacity", "N", 0.0, 1e5),
+    _Field("rated_output", "V/V", 0.0, 0.01),
+    _Field("excitation", "V", 0.0, 15.0),
+    _Field("gain", "V/V", 0.0, 1e5),
+    _Field("offset", "V", -10.5, 10.5, low_open=False),
+    _Field("bandwidth", "Hz", 0.0, 1e6),
+)
+
+
+@dataclass(frozen=True)
+class ForceBlock:
+    """One block of force samples as read: clock time (s), tared force (N), input volts (V).
+
+    ``over_range`` marks samples beyond the input's valid range (clipped or unreliable): their
+    force is a bound, not a measurement.
+    """
+
+    t: FloatArray
+    force: FloatArray
+    volts: FloatArray
+    over_range: BoolArray
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def any_over_range(self) -> bool:
+        return bool(self.over_range.any())
+
+
+class AcquisitionOverflowError(InstrumentError):
+    """Samples were lost: the acquisition buffer overflowed because reads fell behind."""
+
+    def __init__(self, message: str, code: int | None = None):
+        self.code = code
+        super().__init__(message)
+
+
+class AcquisitionTimeoutError(InstrumentTimeout):
+    """The requested samples did not arrive in time; those that did are attached."""
+
+    def __init__(self, message: str, block: ForceBlock):
+        self.block = block
+        super().__init__(message)
+
+
+class ForceOverRangeError(InstrumentError):
+    """A block holds samples beyond the input range; the block is attached, flagged."""
+
+    def __init__(self, message: str, block: ForceBlock):
+        self.block = block
+        super().__init__(message)
+
+
+@runtime_checkable
+class ForceSensor(Protocol):
+    """A hardware-timed force acquisition, as the protocol runner uses it.
+
+    ``start`` begins continuous sampling at ``rate_hz``; ``read_block`` returns the next
+    ``n`` samples (all available when ``n`` is None) with no gap or repeat between blocks and
+    raises :class:`AcquisitionOverflowError` if samples were lost, and
+    :class:`AcquisitionTimeoutError` or :class:`ForceOverRangeError` with the block attached
+    (nothing read is dropped). ``tare`` zeroes the force on the mean of ``duration`` seconds
+    of samples and returns the removed offset (N).
+    """
+
+    @property
+    def rate(self) -> float:
+        """Sample rate while running (Hz)."""
+        ...
+
+    def identity(self) -> dict[str, str]:
+        """What is measuring: instrument, device, serial, channel, transport."""
+        ...
+
+    def start(self, rate_hz: float) -> None: ...
+
+    def read_block(self, n: int | None = None, timeout: float | None = None) -> ForceBlock: ...
+
+    def tare(self, duration: float = 1.0) -> float: ...
+
+    def stop(self) -> None: ...
+
+    def close(self) -> None: ...

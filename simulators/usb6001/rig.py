@@ -1,0 +1,46 @@
+"""The compression rig's force input, assembled: plate-on-sphere contact -> load-cell chain ->
+the simulated USB-6001's input, all on one shared clock."""
+
+from __future__ import annotations
+
+from instrument.clock import Clock
+from instrument.contact import Material
+from instrument.loadcell import LoadCellChain
+from instrument.paper import PLATES, R_COMPRESSION
+from instrument.plate_contact import PlatePosition, PlatePositions, PlateSphereContact
+from simulators.usb6001.device import DeviceSpec, SimulatedUsb6001
+from simulators.usb6001.signals import DEFAULT_NOISE_RMS, LoadCellSignal
+
+#: Conditioner offset of the simulated rig (V): nonzero so that a missing tare shows.
+SIM_OFFSET = 0.0123
+
+
+def compression_daq(
+    clock: Clock,
+    plate_position: PlatePosition | PlatePositions,
+    first_touch: float,
+    *,
+    vectorized: bool = False,
+    direction: int = 1,
+    material: Material = PLATES,
+    sphere_radius: float = R_COMPRESSION,
+    chain: LoadCellChain | None = None,
+    noise_rms: float = DEFAULT_NOISE_RMS,
+    seed: int = 0,
+    channel: str = "ai0",
+    spec: DeviceSpec | None = None,
+    buffer_size: int | None = None,
+) -> SimulatedUsb6001:
+    """A simulated USB-6001 whose ``channel`` sees the load cell on the plate-sphere contact.
+
+    ``plate_position(t)`` (m) is the stage's plate position on ``clock``; ``first_touch`` (m)
+    the stage position where the plate meets the sphere's top (see instrument.plate_contact for
+    the sign convention). ``chain`` is the simulated rig's true chain (default: the nominal
+    chain with a :data:`SIM_OFFSET` conditioner offset).
+    """
+    contact = PlateSphereContact(
+        material, sphere_radius, first_touch, plate_position,
+        direction=direction, vectorized=vectorized,
+    )
+    signal = LoadCellSignal(contact, chain or LoadCellChain(offset=SIM_OFFSET), noise_rms, seed)
+    return SimulatedUsb6001(clock, {channel: signal}, spec=spec, buffer_size=buffer_size)

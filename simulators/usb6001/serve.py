@@ -1,0 +1,87 @@
+"""Simulated NI USB-6001 (load-cell input) served as an NI gRPC Device Server.
+
+``gelrig sim serve usb6001 --port 31763 --clock paced:10`` serves Dev1 until interrupted; the
+official nidaqmx client connects with ``GrpcSessionOptions(grpc_channel=..., session_name="")``
+and the gelrig driver with the address ``grpc://HOST:PORT``. Standing alone, the plate follows
+a ramp-and-hold of its own (``--ramp-speed``; 0 keeps it still); in a composed rig the stage
+simulator supplies the plate position instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+
+from instrument.clock import clock_from_spec
+from instrument.errors import ConfigError
+from instrument.loadcell import LoadCellChain
+from instrument.paper import DEPTH_HOLD
+from instrument.units import to_si
+from simulators.usb6001.rig import SIM_OFFSET, compression_daq
+from simulators.usb6001.server import start_server
+from simulators.usb6001.signals import DEFAULT_NOISE_RMS
+
+#: Port of the NI gRPC Device Server's default configuration.
+DEFAULT_PORT = 31763
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gelrig sim serve usb6001``."""
+    parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
+    parser.add_argument("--port", type=int, default=DEFAULT_PORT,
+                        help=f"TCP port (0: any free port; default {DEFAULT_PORT})")
+    parser.add_argument("--clock", default="real", help="real, paced:K or virtual")
+    parser.add_argument("--first-touch", default="2 mm",
+                        help="stage position of the sphere's top (default 2 mm)")
+    parser.add_argument("--plate-start", default="0 mm",
+                        help="plate position at start (default 0 mm)")
+    parser.add_argument("--ramp-speed", default="0 m/s",
+                        help="plate speed into the sphere (default 0: the plate stays still)")
+    parser.add_argument("--depth", default=f"{DEPTH_HOLD} m",
+                        help="overlap where the ramp stops and the hold begins (default 6 %%)")
+    parser.add_argument("--noise", default=f"{DEFAULT_NOISE_RMS} V", help="rms input noise")
+    parser.add_argument("--offset", default=f"{SIM_OFFSET} V", help="conditioner zero offset")
+    parser.add_argument("--seed", type=int, default=0, help="noise seed")
+    parser.add_argument("--buffer-size", type=int, default=None,
+                        help="acquisition buffer in samples (default: DAQmx's rule)")
+
+
+def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
+    """Serve until interrupted (or ``stop`` is set); print where it listens."""
+    clock = clock_from_spec(args.clock)
+    first_touch = to_si(args.first_touch, "m", "--first-touch")
+    start = to_si(args.plate_start, "m", "--plate-start")
+    speed = to_si(args.ramp_speed, "m/s", "--ramp-speed")
+    depth = to_si(args.depth, "m", "--depth")
+    noise = to_si(args.noise, "V", "--noise")
+    if speed < 0:
+        raise ConfigError("--ramp-speed", args.ramp_speed, "must be >= 0 m/s")
+    if not 0 <= args.port <= 65535:
+        raise ConfigError("--port", args.port, "allowed [0, 65535]")
+    t0 = clock.now()
+    end = first_touch + depth
+
+    def plate(t: float) -> float:
+        return start if speed == 0 else min(start + speed * (t - t0), max(end, start))
+
+    device = compression_daq(
+        clock, plate, first_touch, chain=LoadCellChain(offset=to_si(args.offset, "V", "--offset")),
+        noise_rms=noise, seed=args.seed, buffer_size=args.buffer_size,
+    )
+    try:
+        server = start_server(device, args.host, args.port)
+    except (OSError, RuntimeError) as exc:
+        raise ConfigError("--port", args.port, f"cannot listen on {args.host}: {exc}") from None
+    print(f"usb6001: simulated {device.spec.product_type} {device.spec.name} listening on "
+          f"grpc://{server.address} (clock {args.clock})", flush=True)
+    try:
+        if stop is None:
+            server.server.wait_for_termination()
+        else:
+            stop.wait()
+    except KeyboardInterrupt:
+        print("usb6001: stopped", file=sys.stderr)
+    finally:
+        server.stop()
+    return 0

@@ -1,0 +1,107 @@
+"""What the simulated USB-6001's inputs see: a voltage per channel for blocks of sample times.
+
+A :class:`SignalSource` answers for consecutive blocks on the acquisition's sample grid
+(``t_first + k dt``); it may keep state (contact history, filter, noise stream), so it is
+queried in increasing time. The force signal of the compression rig is
+:class:`LoadCellSignal`: plate-on-sphere force -> load-cell chain -> conditioner pole -> noise.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from scipy.signal import lfilter
+
+from instrument.contact import FloatArray
+from instrument.loadcell import LoadCellChain
+from instrument.plate_contact import PlateSphereContact
+
+#: Default rms noise at the ADC input (V): about one 14-bit code over +-10 V (UNVERIFIED).
+DEFAULT_NOISE_RMS = 1e-3
+
+
+@runtime_checkable
+class SignalSource(Protocol):
+    """Voltage (V) at one analog input for ``n`` samples at ``t_first + k dt`` (s)."""
+
+    def volts(self, t_first: float, dt: float, n: int) -> FloatArray: ...
+
+
+class ConstantSignal:
+    """A fixed voltage plus seeded white noise: an unused input, or a reference."""
+
+    def __init__(self, level: float = 0.0, noise_rms: float = 0.0, seed: int = 0):
+        self.level = float(level)
+        self.noise_rms = float(noise_rms)
+        self._rng = np.random.default_rng(seed)
+
+    def volts(self, t_first: float, dt: float, n: int) -> FloatArray:
+        out = np.full(n, self.level)
+        if self.noise_rms > 0:
+            out += self.noise_rms * self._rng.standard_normal(n)
+        return out
+
+
+class SampleCounterSignal:
+    """A test pattern: sample k on the clock's grid reads ``((k mod period) - period/2)`` codes.
+
+    Decoding a record with :meth:`decode` gives k mod period per sample, so a reader can prove
+    that no sample was lost or repeated. ``lsb`` must be the device's code size.
+    """
+
+    def __init__(self, lsb: float, period: int = 8000):
+        if not 2 <= period <= 16000:
+            raise ValueError(f"period must lie in [2, 16000] codes, got {period}")
+        self.lsb = float(lsb)
+        self.period = int(period)
+
+    def volts(self, t_first: float, dt: float, n: int) -> FloatArray:
+        k = round(t_first / dt) + np.arange(n)
+        return np.asarray(((k % self.period) - self.period // 2) * self.lsb, dtype=float)
+
+    def decode(self, volts: FloatArray) -> FloatArray:
+        """Sample index modulo ``period`` for each value read."""
+        return np.round(np.asarray(volts) / self.lsb) + self.period // 2
+
+
+class LoadCellSignal:
+    """Conditioner output for the plate-on-sphere force: the compression rig's force input.
+
+    ``chain`` is the true chain of the simulated rig (its offset is what a tare must find);
+    the conditioner's bandwidth acts as one pole, exact for a signal held over each sample
+    interval; ``noise_rms`` (V) is seeded white noise added after it.
+    """
+
+    def __init__(
+        self,
+        contact: PlateSphereContact,
+        chain: LoadCellChain,
+        noise_rms: float = DEFAULT_NOISE_RMS,
+        seed: int = 0,
+    ):
+        if not (math.isfinite(noise_rms) and noise_rms >= 0):
+            raise ValueError(f"noise_rms must be >= 0 V, got {noise_rms}")
+        self.contact = contact
+        self.chain = chain
+        self.noise_rms = float(noise_rms)
+        self._rng = np.random.default_rng(seed)
+        self._state: float | None = None
+
+    def force(self, t_first: float, dt: float, n: int) -> FloatArray:
+        """The true force (N) on the cell at the sample times (advances the contact)."""
+        return self.contact.force_on_grid(t_first, dt, n)
+
+    def volts(self, t_first: float, dt: float, n: int) -> FloatArray:
+        v = self.chain.volts(self.force(t_first, dt, n))
+        if v.size == 0:
+            return v
+        a = math.exp(-2.0 * math.pi * self.chain.bandwidth * dt)
+        if self._state is None:
+            self._state = float(v[0])
+        v, _ = lfilter([1.0 - a], [1.0, -a], v, zi=[a * self._state])
+        self._state = float(v[-1])
+        if self.noise_rms > 0:
+            v += self.noise_rms * self._rng.standard_normal(v.size)
+        return np.asarray(v, dtype=float)
