@@ -1,0 +1,82 @@
+"""What a running step sees: the rig, the clock, the event stream, interlocks and control."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from instrument.clock import Clock
+from instrument.contact import FloatArray
+from instrument.errors import InterlockTripped
+from protocols.control import RunControl
+from protocols.events import EventBus, InterlockTrip, Progress, RunState, Samples, StateChanged
+from protocols.interlocks import Interlock, check
+from protocols.rig import Rig
+
+
+class StepContext:
+    """Services for one step: publish samples (interlocks checked on every sample), report
+    progress, honour pause at checkpoints and abort at every block."""
+
+    def __init__(
+        self,
+        rig: Rig,
+        bus: EventBus,
+        control: RunControl,
+        index: int,
+        earlier: Mapping[int, Mapping[str, Any]],
+    ):
+        self.rig = rig
+        self.clock: Clock = rig.clock
+        self.bus = bus
+        self.control = control
+        self.index = index
+        self.earlier = earlier
+        self.interlocks: tuple[Interlock, ...] = ()
+        self.samples_published = 0
+
+    def result(self, key: str) -> Any:
+        """The latest earlier step's result ``key`` (e.g. the first-touch position)."""
+        for index in sorted(self.earlier, reverse=True):
+            if key in self.earlier[index]:
+                return self.earlier[index][key]
+        return None
+
+    def emit(self, data: Mapping[str, FloatArray]) -> None:
+        """Publish a block of samples; on an interlock trip stop motion first, publish the
+        block up to the tripping sample, then raise InterlockTripped."""
+        trip = check(self.interlocks, data)
+        if trip is None:
+            self.bus.publish(Samples(self.clock.now(), self.index, dict(data)))
+            self.samples_published += len(next(iter(data.values()), ()))
+            return
+        self.rig.stop_all()
+        head = {k: v[: trip.index + 1] for k, v in data.items()}
+        self.bus.publish(Samples(self.clock.now(), self.index, head))
+        il = trip.interlock
+        self.bus.publish(InterlockTrip(self.clock.now(), il.name, trip.value, il.limit, il.unit,
+                                       trip.message))
+        raise InterlockTripped(trip.message)
+
+    def progress(
+        self, fraction: float, elapsed: float, remaining: float, message: str = "",
+        **values: float,
+    ) -> None:
+        self.bus.publish(Progress(self.clock.now(), self.index, min(max(fraction, 0.0), 1.0),
+                                  elapsed, max(remaining, 0.0), message, values))
+
+    def tick(self) -> None:
+        """Called on every block: raises Aborted at once if an abort was requested."""
+        self.control.raise_if_aborted()
+
+    def checkpoint(self) -> None:
+        """A point where nothing moves: a requested pause takes effect here."""
+        self.control.raise_if_aborted()
+        if not self.control.pause_requested:
+            return
+        self.rig.stop_all()
+        self.bus.publish(StateChanged(self.clock.now(), RunState.RUNNING, RunState.PAUSED,
+                                      "paused at a checkpoint"))
+        self.control.wait_resumed()
+        self.bus.publish(StateChanged(self.clock.now(), RunState.PAUSED, RunState.RUNNING,
+                                      "resumed"))

@@ -1,0 +1,56 @@
+"""Run control shared between the runner thread and whoever commands it (CLI, GUI, tests)."""
+
+from __future__ import annotations
+
+import threading
+
+
+class Aborted(Exception):
+    """Raised inside a step when an abort was requested; the runner stops motion first."""
+
+
+class RunControl:
+    """Pause/resume/abort requests, thread-safe.
+
+    A pause takes effect at the next checkpoint (a point where nothing moves); an abort
+    takes effect at once, at the next sample block.
+    """
+
+    def __init__(self) -> None:
+        self._abort = threading.Event()
+        self._pause = threading.Event()
+        self._resume = threading.Event()
+        self._resume.set()
+        self.abort_reason = ""
+
+    def pause(self) -> None:
+        self._pause.set()
+        self._resume.clear()
+
+    def resume(self) -> None:
+        self._pause.clear()
+        self._resume.set()
+
+    def abort(self, reason: str = "abort requested") -> None:
+        if not self._abort.is_set():
+            self.abort_reason = reason
+        self._abort.set()
+        self._resume.set()
+
+    @property
+    def pause_requested(self) -> bool:
+        return self._pause.is_set()
+
+    @property
+    def abort_requested(self) -> bool:
+        return self._abort.is_set()
+
+    def raise_if_aborted(self) -> None:
+        if self._abort.is_set():
+            raise Aborted(self.abort_reason)
+
+    def wait_resumed(self, poll: float = 0.05) -> None:
+        """Block in real time until resumed or aborted (a paused run waits for a person)."""
+        while not self._resume.wait(poll):
+            pass
+        self.raise_if_aborted()

@@ -1,0 +1,62 @@
+"""Interlocks checked on every sample: the first sample beyond a limit trips."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from instrument.contact import FloatArray
+
+
+@dataclass(frozen=True)
+class Interlock:
+    """Trips when ``|column|`` (or the signed value, if not ``absolute``) exceeds ``limit``."""
+
+    name: str
+    column: str
+    limit: float
+    unit: str
+    absolute: bool = True
+
+    def first_violation(self, data: Mapping[str, FloatArray]) -> int | None:
+        """Index of the first sample beyond the limit in a block, or None."""
+        values = data.get(self.column)
+        if values is None or len(values) == 0:
+            return None
+        v = np.abs(values) if self.absolute else np.asarray(values)
+        bad = np.flatnonzero(v > self.limit)
+        return int(bad[0]) if bad.size else None
+
+    def headroom(self, value: float) -> float:
+        """Distance of a value from the limit (negative when beyond)."""
+        return self.limit - (abs(value) if self.absolute else value)
+
+
+@dataclass(frozen=True)
+class Trip:
+    """What tripped, on which sample (index within its block) and with what value."""
+
+    interlock: Interlock
+    index: int
+    value: float
+    t: float
+
+    @property
+    def message(self) -> str:
+        il = self.interlock
+        return (f"interlock {il.name}: {self.value:.6g} {il.unit} beyond the limit "
+                f"{il.limit:.6g} {il.unit} at t = {self.t:.3f} s")
+
+
+def check(interlocks: tuple[Interlock, ...], data: Mapping[str, FloatArray]) -> Trip | None:
+    """The earliest trip in a block across all interlocks, or None."""
+    earliest: Trip | None = None
+    t = data.get("t_s")
+    for il in interlocks:
+        i = il.first_violation(data)
+        if i is not None and (earliest is None or i < earliest.index):
+            value = float(data[il.column][i])
+            earliest = Trip(il, i, value, float(t[i]) if t is not None else float("nan"))
+    return earliest

@@ -1,0 +1,1 @@
+"""The paper's two protocols, shipped as protocol files."""

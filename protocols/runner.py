@@ -1,0 +1,101 @@
+"""The runner: executes a protocol's steps on a rig and tells the event stream everything.
+
+Order on the way out of any trouble is fixed: stop all motion, then record, then report.
+Abort (from the CLI, the GUI or a test) takes effect at the next sample block; pause at the
+next checkpoint; an interlock trip stops motion within one sample and ends the run.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+from instrument.errors import GelrigError, InterlockTripped
+from protocols.context import StepContext
+from protocols.control import Aborted, RunControl
+from protocols.events import (
+    EventBus,
+    Fault,
+    Finished,
+    RunState,
+    StateChanged,
+    StepFinished,
+    StepStarted,
+)
+from protocols.rig import Rig
+from protocols.spec import ProtocolSpec
+
+log = logging.getLogger(__name__)
+
+
+class Runner:
+    """Runs one protocol on one rig. ``completed`` holds the results of steps already done
+    (a resumed run skips them and hands their results to later steps)."""
+
+    def __init__(
+        self,
+        rig: Rig,
+        protocol: ProtocolSpec,
+        bus: EventBus | None = None,
+        control: RunControl | None = None,
+        completed: Mapping[int, Mapping[str, Any]] | None = None,
+    ):
+        if protocol.rig != rig.kind:
+            raise GelrigError(f"protocol {protocol.name!r} runs on a {protocol.rig} rig, "
+                              f"not on this {rig.kind} rig")
+        self.rig = rig
+        self.protocol = protocol
+        self.bus = bus or EventBus()
+        self.control = control or RunControl()
+        self.results: dict[int, Mapping[str, Any]] = dict(completed or {})
+        self.state = RunState.IDLE
+        self.reason = ""
+
+    def _set_state(self, new: RunState, reason: str = "") -> None:
+        old, self.state = self.state, new
+        self.bus.publish(StateChanged(self.rig.clock.now(), old, new, reason))
+
+    def run(self) -> RunState:
+        """Execute every step not yet completed; returns the final state."""
+        clock = self.rig.clock
+        self._set_state(RunState.RUNNING)
+        for index, step in enumerate(self.protocol.steps):
+            if index in self.results:
+                continue
+            ctx = StepContext(self.rig, self.bus, self.control, index, self.results)
+            try:
+                ctx.checkpoint()
+                self.bus.publish(StepStarted(clock.now(), index, step.name, step.kind,
+                                             step.params, step.definition.columns))
+                results = step.definition.run(ctx, step.params)
+            except Aborted as exc:
+                return self._end(index, step.name, RunState.ABORTED, "aborted",
+                                 str(exc) or "abort requested")
+            except InterlockTripped as exc:
+                return self._end(index, step.name, RunState.ABORTED, "aborted", str(exc))
+            except GelrigError as exc:
+                self.rig.stop_all()
+                self.bus.publish(Fault(clock.now(), type(exc).__name__, str(exc)))
+                return self._end(index, step.name, RunState.FAILED, "failed",
+                                 f"{type(exc).__name__}: {exc}")
+            except BaseException as exc:  # Ctrl-C outside our handlers, a bug: stop first
+                self.rig.stop_all()
+                self.bus.publish(Fault(clock.now(), type(exc).__name__, str(exc)))
+                self._end(index, step.name, RunState.FAILED, "failed",
+                          f"{type(exc).__name__}: {exc}")
+                raise
+            self.results[index] = results
+            self.bus.publish(StepFinished(clock.now(), index, step.name, "completed", results))
+        self._set_state(RunState.COMPLETED)
+        self.bus.publish(Finished(clock.now(), RunState.COMPLETED, "all steps completed"))
+        return self.state
+
+    def _end(self, index: int, name: str, state: RunState, status: str, reason: str) -> RunState:
+        self.rig.stop_all()
+        clock = self.rig.clock
+        self.reason = reason
+        self.bus.publish(StepFinished(clock.now(), index, name, status, {"reason": reason}))
+        self._set_state(state, reason)
+        self.bus.publish(Finished(clock.now(), state, reason))
+        return state

@@ -1,0 +1,115 @@
+"""Protocol files (TOML): a name, the rig they run on, and a list of steps with parameters.
+
+Loading validates everything before anything moves; errors name the file, the field (as
+``step[2].speed``), the value and what is allowed::
+
+    [protocol]
+    name = "Paper compression"
+    rig = "compression"          # or "shear"
+
+    [[step]]
+    kind = "compression_contact_search"
+    name = "find the sphere"
+    speed = "0.3 mm/s"
+    ...
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from instrument.errors import ConfigError
+from protocols.steps import KINDS, StepDefinition
+from protocols.steps.base import Params
+
+RIGS = ("compression", "shear")
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of a protocol: its kind, a name, validated SI parameters."""
+
+    definition: StepDefinition
+    name: str
+    params: Params
+
+    @property
+    def kind(self) -> str:
+        return self.definition.kind
+
+
+@dataclass(frozen=True)
+class ProtocolSpec:
+    """A validated protocol; ``table`` is the file's content, stored beside the data."""
+
+    name: str
+    rig: str
+    steps: tuple[Step, ...]
+    table: dict[str, Any]
+    source: str = "<protocol>"
+
+
+def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> ProtocolSpec:
+    """Validate a protocol given as a TOML table."""
+    head = table.get("protocol")
+    if not isinstance(head, dict):
+        raise ConfigError("[protocol]", "missing", "a [protocol] table with name and rig", source)
+    unknown = set(table) - {"protocol", "step"}
+    if unknown:
+        key = sorted(unknown)[0]
+        raise ConfigError(key, "?", "unknown table; allowed: [protocol], [[step]]", source)
+    name = head.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError("protocol.name", name, "a non-empty string", source)
+    rig = head.get("rig")
+    if rig not in RIGS:
+        raise ConfigError("protocol.rig", rig, f"allowed: {', '.join(RIGS)}", source)
+    extra = set(head) - {"name", "rig", "description"}
+    if extra:
+        key = sorted(extra)[0]
+        raise ConfigError(f"protocol.{key}", head[key],
+                          "unknown field; allowed: name, rig, description", source)
+    raw_steps = table.get("step")
+    if not isinstance(raw_steps, list) or not raw_steps:
+        raise ConfigError("step", "missing", "at least one [[step]] table", source)
+    steps = []
+    for i, raw in enumerate(raw_steps):
+        prefix = f"step[{i}]."
+        kind = raw.get("kind")
+        definition = KINDS.get(kind) if isinstance(kind, str) else None
+        if definition is None:
+            allowed = ", ".join(k for k, d in KINDS.items() if d.rig == rig)
+            raise ConfigError(f"{prefix}kind", kind, f"allowed for a {rig} rig: {allowed}", source)
+        if definition.rig != rig:
+            raise ConfigError(f"{prefix}kind", kind,
+                              f"runs on the {definition.rig} rig, not the {rig} rig", source)
+        step_name = raw.get("name", definition.description or kind)
+        if not isinstance(step_name, str) or not step_name.strip():
+            raise ConfigError(f"{prefix}name", step_name, "a non-empty string", source)
+        steps.append(Step(definition, step_name, definition.parse(raw, prefix, source)))
+    return ProtocolSpec(name, rig, tuple(steps), table, source)
+
+
+def load_protocol(path: str | Path) -> ProtocolSpec:
+    """Read and validate a protocol file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError("protocol file", str(path), f"cannot be read ({exc.strerror})") from None
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("TOML", str(path), f"not valid TOML: {exc}") from None
+    return parse_protocol(table, str(path))
+
+
+def paper_protocol(name: str) -> Path:
+    """Path of a shipped paper protocol: 'compression' or 'shear'."""
+    path = Path(__file__).parent / "paper" / f"{name}.toml"
+    if not path.exists():
+        raise ConfigError("protocol", name, "allowed: compression, shear")
+    return path

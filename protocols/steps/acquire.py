@@ -1,0 +1,146 @@
+"""Force acquisition on the compression rig while the stage moves or dwells.
+
+Every wait of a compression step reads the DAQ (the acquisition never falls behind), and each
+block is stamped with the plate position, interpolated between stage polls, and published
+through the step context, which checks the interlocks on every sample. Blocks shrink as the
+force nears a watched level (a threshold or an interlock limit), down to one sample, so a
+crossing is seen within one sample period of happening.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from instrument.contact import FloatArray
+from instrument.loadcell import ForceBlock, ForceOverRangeError
+from protocols.context import StepContext
+from protocols.rig import CompressionRig
+
+COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_range": "1"}
+
+
+class ForceRecorder:
+    """Reads force blocks, stamps them with the plate position, publishes, keeps a copy."""
+
+    def __init__(self, ctx: StepContext, rate: float, first_touch: float = math.nan,
+                 block_time: float = 0.1, keep: bool = True):
+        rig = ctx.rig
+        assert isinstance(rig, CompressionRig)
+        self.ctx = ctx
+        self.rig = rig
+        self.rate = rate
+        self.first_touch = first_touch
+        self.n_max = max(1, round(rate * block_time))
+        self.keep = keep
+        self.kept: dict[str, list[FloatArray]] = {k: [] for k in COLUMNS}
+        self._poll_t = math.nan
+        self._poll_z = math.nan
+        self._last_f = math.nan
+        self._slope = 0.0  # N per sample
+
+    def start(self) -> None:
+        force = self.rig.force
+        try:
+            running = abs(force.rate - self.rate) < 1e-9
+        except Exception:
+            running = False
+        if not running:
+            force.start(self.rate)
+        self._poll()
+
+    def _poll(self) -> None:
+        self._poll_z = self.rig.stage.position()
+        self._poll_t = self.ctx.clock.now()
+
+    def _block_size(self, watch: tuple[float, ...]) -> int:
+        if math.isnan(self._last_f) or self._slope <= 0:
+            return self.n_max
+        room = min((w - self._last_f for w in watch if w > self._last_f), default=math.inf)
+        if math.isinf(room):
+            return self.n_max
+        return int(min(self.n_max, max(1, math.floor(room / self._slope / 2))))
+
+    def read(self, watch: tuple[float, ...] = ()) -> dict[str, FloatArray]:
+        """Read, stamp and publish one block; returns its columns."""
+        self.ctx.tick()
+        limits = tuple(il.limit for il in self.ctx.interlocks if il.column == "force_N")
+        n = self._block_size(watch + limits)
+        try:
+            block = self.rig.force.read_block(n)
+            over: ForceOverRangeError | None = None
+        except ForceOverRangeError as exc:  # keep the flagged data, then stop
+            block, over = exc.block, exc
+        data = self._stamp(block)
+        if self.keep:
+            for k, v in data.items():
+                self.kept[k].append(v)
+        self.ctx.emit(data)
+        if over is not None:
+            self.rig.stop_all()
+            raise over
+        return data
+
+    def _stamp(self, block: ForceBlock) -> dict[str, FloatArray]:
+        t0, z0 = self._poll_t, self._poll_z
+        self._poll()
+        if len(block) and self._poll_t > t0:
+            z = np.interp(block.t, [t0, self._poll_t], [z0, self._poll_z])
+        else:
+            z = np.full(len(block), self._poll_z)
+        if len(block) >= 2:
+            self._slope = float(block.force[-1] - block.force[0]) / (len(block) - 1)
+        elif len(block) == 1 and not math.isnan(self._last_f):
+            self._slope = float(block.force[-1] - self._last_f)
+        if len(block):
+            self._last_f = float(block.force[-1])
+        return {
+            "t_s": np.asarray(block.t, dtype=float),
+            "position_m": z,
+            "delta_m": z - self.first_touch,
+            "force_N": np.asarray(block.force, dtype=float),
+            "over_range": np.asarray(block.over_range, dtype=float),
+        }
+
+    def until_stopped(self, watch: tuple[float, ...] = (),
+                      stop_above: float | None = None) -> int | None:
+        """Read blocks until the stage stops; with ``stop_above`` stop it at once when the force
+        first exceeds that level and return the sample's index in ``kept`` order, else None."""
+        seen = sum(len(v) for v in self.kept["t_s"])
+        while True:
+            data = self.read(watch)
+            if stop_above is not None:
+                over = np.flatnonzero(data["force_N"] > stop_above)
+                if over.size:
+                    self.rig.stage.stop(immediate=True)
+                    self._drain_motion()
+                    return seen + int(over[0])
+            seen += len(data["t_s"])
+            if not self.rig.stage.is_moving():
+                return None
+
+    def _drain_motion(self) -> None:
+        while self.rig.stage.is_moving():
+            self.read()
+
+    def dwell(self, duration: float, progress: bool = False, label: str = "") -> None:
+        """Keep reading for ``duration`` seconds of clock time."""
+        clock = self.ctx.clock
+        start = clock.now()
+        end = start + duration
+        next_report = start
+        while clock.now() < end:
+            self.read()
+            now = clock.now()
+            if progress and now >= next_report:
+                self.ctx.progress((now - start) / duration, now - start, end - now, label,
+                                  force_N=self._last_f)
+                next_report = now + duration / 200
+
+    def columns(self) -> dict[str, FloatArray]:
+        """Everything kept so far, concatenated."""
+        return {k: np.concatenate(v) if v else np.empty(0) for k, v in self.kept.items()}
+
+    def clear(self) -> None:
+        self.kept = {k: [] for k in COLUMNS}

@@ -1,0 +1,117 @@
+"""Moving the rheometer arm and recording its measurement stream, for the shear steps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from instrument.contact import FloatArray
+from instrument.rheometer import Rheometer, StreamPoint
+from protocols.context import StepContext
+from protocols.rig import ShearRig
+
+COLUMNS = {
+    "t_s": "s", "angle_rad": "rad", "theta_m": "m", "torque_Nm": "N*m",
+    "normal_force_N": "N", "gap_m": "m", "pass": "1", "direction": "1", "speed_m_s": "m/s",
+    "overlap_m": "m",
+}
+
+
+class ArmRecorder:
+    """Streams points while the arm turns or rests, publishes them with pass labels."""
+
+    def __init__(self, ctx: StepContext, interval: float, read_period: float = 1.0):
+        rig = ctx.rig
+        assert isinstance(rig, ShearRig)
+        self.ctx = ctx
+        self.rheo: Rheometer = rig.rheometer
+        self.arm = self.rheo.config.arm
+        self.interval = interval
+        self.read_period = max(read_period, interval)
+        self.labels = {"pass": -1.0, "direction": 0.0, "speed_m_s": 0.0, "overlap_m": math.nan}
+        self.kept: list[dict[str, FloatArray]] = []
+        self.keep = False
+        self.rheo.start_stream(interval)
+
+    def _publish(self, points: list[StreamPoint]) -> dict[str, FloatArray] | None:
+        if not points:
+            return None
+        n = len(points)
+        data = {
+            "t_s": np.array([p.t for p in points]),
+            "angle_rad": np.array([p.angle for p in points]),
+            "theta_m": np.array([p.theta for p in points]),
+            "torque_Nm": np.array([p.torque for p in points]),
+            "normal_force_N": np.array([p.normal_force for p in points]),
+            "gap_m": np.array([p.gap for p in points]),
+        }
+        for key, value in self.labels.items():
+            data[key] = np.full(n, value)
+        if self.keep:
+            self.kept.append(data)
+        self.ctx.emit(data)
+        return data
+
+    def poll(self) -> dict[str, FloatArray] | None:
+        self.ctx.tick()
+        return self._publish(self.rheo.read_stream())
+
+    def dwell(self, duration: float) -> None:
+        clock = self.ctx.clock
+        end = clock.now() + duration
+        while clock.now() < end - 1e-12:
+            clock.sleep(min(self.read_period, end - clock.now()))
+            self.poll()
+
+    def turn_to(self, angle: float, speed: float,
+                stop_above: float | None = None) -> float | None:
+        """Turn at ``|speed|`` (m/s at the arm) until ``angle`` (rad); with ``stop_above`` stop
+        early when ``|torque|`` exceeds it and return the angle there, else None."""
+        clock = self.ctx.clock
+        start = self.rheo.angle()
+        direction = 1.0 if angle > start else -1.0
+        if abs(angle - start) * self.arm < 1e-9:
+            return None
+        self.rheo.rotate(direction * abs(speed))
+        hit: float | None = None
+        try:
+            while True:
+                data = self.poll()
+                if stop_above is not None and data is not None:
+                    over = np.flatnonzero(np.abs(data["torque_Nm"]) > stop_above)
+                    if over.size:
+                        hit = float(data["angle_rad"][over[0]])
+                        break
+                now_angle = self.rheo.angle()
+                remaining = (angle - now_angle) * direction * self.arm
+                if remaining <= 0:
+                    break
+                step = remaining / abs(speed)
+                if stop_above is not None:
+                    step = min(step, self.read_period)
+                clock.sleep(min(max(step, self.interval), self.read_period * 4))
+        finally:
+            self.rheo.stop()
+        self.settle()
+        return hit
+
+    def settle(self, timeout: float = 30.0) -> None:
+        """Poll until the arm is at rest after a stop."""
+        clock = self.ctx.clock
+        end = clock.now() + timeout
+        while self.rheo.status().busy and clock.now() < end:
+            clock.sleep(self.interval)
+            self.poll()
+        self.poll()
+
+    def close(self) -> None:
+        try:
+            self.poll()
+        finally:
+            self.rheo.stop_stream()
+
+    def columns(self) -> dict[str, FloatArray]:
+        if not self.kept:
+            return {k: np.empty(0) for k in COLUMNS}
+        return {k: np.concatenate([d[k] for d in self.kept]) for k in COLUMNS}
