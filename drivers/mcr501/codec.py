@@ -1,0 +1,120 @@
+"""Encode requests and decode replies of the MCR 501 table, turning bad lines into typed errors.
+
+Host side: :func:`encode` and :func:`decode_reply` / :func:`decode_record`. Instrument side
+(the simulator): :func:`decode_request` and :func:`error_line`. A well-framed ``#ERR`` reply
+raises :class:`DeviceErrorReply` (or :class:`InstrumentTrip` when the instrument stopped
+itself); anything not matching the expected shape raises :class:`FramingError`.
+"""
+
+from __future__ import annotations
+
+from drivers.mcr501.commands import (
+    COMMANDS,
+    ERROR,
+    ERROR_CODES,
+    RECORD,
+    TRIP_CODES,
+    Command,
+    split_key,
+)
+from instrument.errors import DeviceErrorReply, FramingError
+
+Values = dict[str, float | int | str]
+
+
+class InstrumentTrip(DeviceErrorReply):
+    """The instrument stopped its motion by itself (torque over range, normal-force overload)."""
+
+
+class UnknownCommand(DeviceErrorReply):
+    """The instrument did not recognise a command of the table (confirm the table)."""
+
+
+def encode(name: str, **values: object) -> str:
+    """The request line of table command ``name`` (no termination)."""
+    try:
+        command = COMMANDS[name]
+    except KeyError:
+        raise KeyError(f"{name!r} is not in the MCR 501 command table") from None
+    return command.request.encode(**values)
+
+
+def _raise_error(line: str, expected: str) -> None:
+    err = ERROR.decode(line)
+    if err is None:
+        return
+    code = int(err["code"])
+    detail = str(err["text"]) or ERROR_CODES.get(code, "unknown error")
+    message = f"MCR 501 error {code} in reply to {expected}: {detail}"
+    if code in TRIP_CODES:
+        raise InstrumentTrip(message, code)
+    if code == 10:
+        raise UnknownCommand(message, code)
+    raise DeviceErrorReply(message, code)
+
+
+def decode_reply(command: Command, line: str) -> Values:
+    """The typed fields of the reply ``line`` to ``command``.
+
+    Raises DeviceErrorReply for ``#ERR`` and FramingError for anything else unexpected.
+    """
+    _raise_error(line, command.request.key)
+    values = command.reply.decode(line)
+    if values is None:
+        expected = command.reply.regex.pattern
+        raise FramingError(
+            f"MCR 501: malformed reply to {command.name} ({command.request.key}): {line!r} "
+            f"does not match {expected}"
+        )
+    return values
+
+
+def decode_record(line: str) -> Values:
+    """The typed fields of one ``:MEAS`` stream record."""
+    _raise_error(line, RECORD.key)
+    values = RECORD.decode(line)
+    if values is None:
+        raise FramingError(f"MCR 501: malformed stream record {line!r}")
+    return values
+
+
+class RequestError(Exception):
+    """A request the instrument rejects; carries the ``#ERR`` code (simulator side)."""
+
+    def __init__(self, code: int, text: str):
+        self.code = code
+        self.text = text
+        super().__init__(f"{code}: {text}")
+
+
+def decode_request(line: str) -> tuple[Command, Values]:
+    """The table command and typed arguments of a request line (instrument side).
+
+    Raises RequestError 10 for an unknown key and 11 for a known key with a bad argument.
+    """
+    parts = split_key(line)
+    if parts is None:
+        raise RequestError(10, "unknown command")
+    key = parts[0]
+    known = False
+    for command in COMMANDS.values():
+        if command.request.key != key:
+            continue
+        known = True
+        values = command.request.decode(line)
+        if values is not None:
+            return command, values
+    if known:
+        raise RequestError(11, f"bad argument for {key}")
+    raise RequestError(10, f"unknown command {key}")
+
+
+#: Characters an ``#ERR`` text may not carry, and their stand-ins.
+_TEXT_SAFE = str.maketrans(";[]\r\n", ",()  ")
+
+
+def error_line(code: int, text: str = "") -> str:
+    """An ``#ERR`` reply line; ``text`` defaults to the table's description of ``code``."""
+    raw = text or ERROR_CODES.get(code, "error")
+    clean = raw.translate(_TEXT_SAFE)
+    return ERROR.encode(code=code, text=clean)

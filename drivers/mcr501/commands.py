@@ -1,0 +1,260 @@
+"""The MCR 501 command table: every command the shear rig sends, as data.
+
+UNCONFIRMED. Anton Paar publishes no command reference for the MCR 501 and ships no driver
+for it. This table follows the bracketed ASCII framing seen on the RS-232 line between the
+vendor software and an MCR 501 (firmware 03.40: ``#VERS[?]``, ``#DATA[?]``, ``:STAT[?]``,
+``:RUN[]``, records ``:MEAS[...]``), but the keywords, argument formats, units and replies
+below are the project's reconstruction. Every entry must be confirmed on the instrument
+before the rig runs on hardware (docs/decisions/0020). The simulator serves exactly this
+table, so changing an entry here changes both sides at once.
+
+Framing: one line per message, ``KEY[field;field;...]`` terminated by CR LF. A query has the
+single argument ``?``; an action without arguments has empty brackets. Actions answer
+``KEY[OK]``; queries answer with their key and fields; any command may instead answer
+``#ERR[code;text]``. ``#DATA[?]`` answers a header ``#DATA[count;remaining]`` followed by
+``count`` record lines ``:MEAS[...]``. Wire units are the instrument's display units (mm, deg,
+rpm, mN m, N, s); the driver converts to SI.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from types import MappingProxyType
+
+#: Line termination for writes and reads (UNCONFIRMED).
+TERMINATION = "\r\n"
+#: Serial settings observed on the line: 38400 baud, 8 data bits, no parity, 1 stop bit,
+#: XON/XOFF flow control.
+BAUD_RATE = 38400
+DATA_BITS = 8
+#: The literal argument of a query, and the literal reply of an action.
+QUERY = "?"
+OK = "OK"
+#: Most stream records one ``#DATA[?]`` answer carries.
+MAX_RECORDS = 100
+
+_FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_KEY = re.compile(r"^([#:][A-Z]{2,5})\[([^\[\]\r\n]*)\]$")
+
+
+@dataclass(frozen=True)
+class Field:
+    """One ``;``-separated field: its name, how it is written, and what may appear."""
+
+    name: str
+    fmt: str
+    pattern: str
+    kind: str = "text"
+
+    def encode(self, value: object) -> str:
+        return format(value, self.fmt)
+
+    def decode(self, raw: str) -> float | int | str:
+        """The value of a raw field that matched :attr:`pattern`."""
+        if self.kind == "number":
+            return float(raw)
+        if self.kind == "integer":
+            return int(raw)
+        if self.kind == "hex":
+            return int(raw, 16)
+        return raw
+
+
+def number(name: str, fmt: str) -> Field:
+    """A decimal number written with ``fmt`` (e.g. ``.4f``)."""
+    return Field(name, fmt, _FLOAT, "number")
+
+
+def integer(name: str) -> Field:
+    """A non-negative decimal integer."""
+    return Field(name, "d", r"\d+", "integer")
+
+
+def hexword(name: str) -> Field:
+    """A 4-digit upper-case hexadecimal word."""
+    return Field(name, "04X", r"[0-9A-F]{4}", "hex")
+
+
+def word(name: str, *choices: str) -> Field:
+    """One of ``choices`` (upper-case)."""
+    return Field(name, "s", "|".join(re.escape(c) for c in choices))
+
+
+def text(name: str) -> Field:
+    """Free text without brackets, ``;`` or line breaks."""
+    return Field(name, "s", r"[^\[\];\r\n]*")
+
+
+Shape = tuple[Field, ...] | str
+"""Fields of a message, or a literal argument (``?``, ``OK`` or empty)."""
+
+
+@dataclass(frozen=True)
+class Message:
+    """A message shape: key plus fields (or literal argument); compiles to a full-line regex."""
+
+    key: str
+    shape: Shape
+
+    @property
+    def regex(self) -> re.Pattern[str]:
+        return _compile(self.key, self.shape)
+
+    def encode(self, **values: object) -> str:
+        """The line for ``values`` (no termination)."""
+        if isinstance(self.shape, str):
+            if values:
+                raise TypeError(f"{self.key} takes no values, got {sorted(values)}")
+            return f"{self.key}[{self.shape}]"
+        missing = {f.name for f in self.shape} - values.keys()
+        extra = values.keys() - {f.name for f in self.shape}
+        if missing or extra:
+            raise TypeError(f"{self.key}: missing {sorted(missing)}, unexpected {sorted(extra)}")
+        body = ";".join(f.encode(values[f.name]) for f in self.shape)
+        return f"{self.key}[{body}]"
+
+    def match(self, line: str) -> dict[str, str] | None:
+        """The raw field strings of ``line`` if it has this shape, else None."""
+        m = self.regex.match(line)
+        return None if m is None else m.groupdict()
+
+    def decode(self, line: str) -> dict[str, float | int | str] | None:
+        """The typed field values of ``line`` if it has this shape, else None."""
+        raw = self.match(line)
+        if raw is None or isinstance(self.shape, str):
+            return None if raw is None else {}
+        return {f.name: f.decode(raw[f.name]) for f in self.shape}
+
+
+_cache: dict[tuple[str, Shape], re.Pattern[str]] = {}
+
+
+def _compile(key: str, shape: Shape) -> re.Pattern[str]:
+    cached = _cache.get((key, shape))
+    if cached is not None:
+        return cached
+    if isinstance(shape, str):
+        body = re.escape(shape)
+    else:
+        body = ";".join(f"(?P<{f.name}>{f.pattern})" for f in shape)
+    pattern = re.compile(f"^{re.escape(key)}\\[{body}\\]$")
+    _cache[(key, shape)] = pattern
+    return pattern
+
+
+@dataclass(frozen=True)
+class Command:
+    """One table entry: the request the host sends and the reply it expects.
+
+    ``records`` is set for commands whose reply header is followed by record lines.
+    """
+
+    name: str
+    request: Message
+    reply: Message
+    doc: str
+    records: Message | None = None
+
+
+def split_key(line: str) -> tuple[str, str] | None:
+    """``(key, body)`` of a framed line, or None if it is not ``KEY[body]``."""
+    m = _KEY.match(line)
+    return None if m is None else (m.group(1), m.group(2))
+
+
+def _action(name: str, key: str, fields: Shape, doc: str) -> Command:
+    return Command(name, Message(key, fields), Message(key, OK), doc)
+
+
+def _query(name: str, key: str, fields: tuple[Field, ...], doc: str) -> Command:
+    return Command(name, Message(key, QUERY), Message(key, fields), doc)
+
+
+#: The measurement-stream record: instrument time since ``:RUN`` (s), angle (deg), torque
+#: (mN m), normal force (N), gap (mm).
+RECORD = Message(
+    ":MEAS",
+    (
+        number("t_s", ".4f"),
+        number("angle_deg", ".7f"),
+        number("torque_mnm", ".6f"),
+        number("force_n", ".6f"),
+        number("gap_mm", ".4f"),
+    ),
+)
+
+#: The error reply any command may get instead of its own.
+ERROR = Message("#ERR", (integer("code"), text("text")))
+
+_TABLE: tuple[Command, ...] = (
+    _query(
+        "identify",
+        "#VERS",
+        (text("model"), text("serial"), text("firmware")),
+        "model, serial number, firmware version",
+    ),
+    _query(
+        "status",
+        ":STAT",
+        (word("mode", "IDLE", "ROT", "HOLD"), hexword("flags")),
+        "motor mode and state flags (see STATUS_FLAGS)",
+    ),
+    _action("zero_gap", ":GAPZ", "", "reference the gap; gap moves are refused before it"),
+    _action("set_gap", ":GAP", (number("gap_mm", ".4f"),), "move the lift to a gap (mm)"),
+    _query("read_gap", ":GAP", (number("gap_mm", ".4f"),), "current gap (mm)"),
+    _action(
+        "rotate",
+        ":ROT",
+        (word("direction", "CW", "CCW"), number("rpm", ".6e")),
+        "turn at a constant speed (rpm >= 0) clockwise or counter-clockwise",
+    ),
+    _action("stop", ":STOP", "", "ramp the speed to zero"),
+    _action("hold", ":HOLD", "", "ramp to rest and hold the position"),
+    _query("read_angle", ":ANG", (number("angle_deg", ".7f"),), "arm angle (deg)"),
+    _query("read_torque", ":TORQ", (number("torque_mnm", ".6f"),), "motor torque (mN m)"),
+    _query("read_normal_force", ":FN", (number("force_n", ".6f"),), "normal force (N)"),
+    _action(
+        "start_stream",
+        ":RUN",
+        (number("interval_s", ".6g"),),
+        "record a point every interval (s) from now",
+    ),
+    _action("stop_stream", ":END", "", "stop recording; unread points are discarded"),
+    Command(
+        "read_stream",
+        Message("#DATA", QUERY),
+        Message("#DATA", (integer("count"), integer("remaining"))),
+        f"up to {MAX_RECORDS} recorded points, then count :MEAS record lines",
+        records=RECORD,
+    ),
+)
+
+#: The command table, by name.
+COMMANDS: MappingProxyType[str, Command] = MappingProxyType({c.name: c for c in _TABLE})
+
+#: Bits of the ``:STAT`` flags word.
+STATUS_FLAGS: MappingProxyType[str, int] = MappingProxyType(
+    {
+        "gap_moving": 0x01,
+        "gap_referenced": 0x02,
+        "streaming": 0x04,
+        "accelerating": 0x08,
+        "fault": 0x10,
+        "overflow": 0x20,
+    }
+)
+
+#: Error codes of ``#ERR`` replies (the project's convention; UNCONFIRMED).
+ERROR_CODES: MappingProxyType[int, str] = MappingProxyType(
+    {
+        10: "unknown command",
+        11: "bad argument",
+        12: "gap not referenced",
+        13: "value out of range",
+        31: "normal force overload (overlap limit)",
+        32: "torque over range",
+    }
+)
+#: Codes that mean the instrument stopped its motion by itself.
+TRIP_CODES = frozenset({31, 32})

@@ -1,0 +1,298 @@
+"""The MCR 501 driver: the :class:`instrument.rheometer.Rheometer` contract over pyvisa.
+
+Every request goes through the command table (drivers/mcr501/commands.py, UNCONFIRMED on
+hardware). SI units at the interface; wire units (mm, deg, rpm, mN m) inside. Waits run on the
+injected clock, so in virtual time a gap move or a pass costs no wall time. Safe by default: a
+failure of any method while the arm may be turning sends stop before the error propagates.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import math
+from collections.abc import Callable
+from typing import Any, Concatenate, ParamSpec, TypeVar
+
+from drivers.mcr501.codec import Values, decode_record, decode_reply
+from drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
+from drivers.mcr501.transport import LineTransport, VisaTransport
+from instrument.clock import Clock
+from instrument.errors import (
+    FramingError,
+    GelrigError,
+    InstrumentError,
+    InstrumentTimeout,
+    LimitError,
+)
+from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
+from instrument.sliding import rpm_from_speed
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+_MODES = {"IDLE": "idle", "ROT": "rotating", "HOLD": "holding"}
+#: Shortest stream interval the driver asks for (s).
+MIN_STREAM_INTERVAL = 1e-3
+
+
+def _stops_on_fault(
+    method: Callable[Concatenate[MCR501, P], R],
+) -> Callable[Concatenate[MCR501, P], R]:
+    """Wrap a public method: on any gelrig error while the arm may turn, stop it first."""
+
+    @functools.wraps(method)
+    def wrapper(self: MCR501, *args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return method(self, *args, **kwargs)
+        except GelrigError as exc:
+            self._after_fault(exc)
+            raise
+
+    return wrapper
+
+
+class MCR501:
+    """Anton Paar MCR 501 with the rotating-arm shear tool, over any line transport.
+
+    Use :meth:`open` for a VISA resource string; pass a transport directly for anything else.
+    """
+
+    def __init__(
+        self, transport: LineTransport, clock: Clock, config: RheometerConfig | None = None
+    ):
+        self._transport = transport
+        self._clock = clock
+        self._config = config if config is not None else RheometerConfig()
+        self._maybe_rotating = False
+        self._stream_t0: float | None = None
+        self.touch_gap: float | None = self._config.touch_gap
+
+    @classmethod
+    def open(
+        cls,
+        resource: str,
+        clock: Clock,
+        config: RheometerConfig | None = None,
+        backend: str = "@py",
+        resource_manager: Any = None,
+        baud_rate: int = BAUD_RATE,
+    ) -> MCR501:
+        """Connect through pyvisa; ASRL resources get 38400 baud 8N1 XON/XOFF by default."""
+        config = config if config is not None else RheometerConfig()
+        transport = VisaTransport(
+            resource,
+            timeout=config.timeout,
+            backend=backend,
+            resource_manager=resource_manager,
+            baud_rate=baud_rate,
+        )
+        return cls(transport, clock, config)
+
+    def __enter__(self) -> MCR501:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def config(self) -> RheometerConfig:
+        return self._config
+
+    @property
+    def maybe_rotating(self) -> bool:
+        """True from a rotate request until a stop or hold is acknowledged."""
+        return self._maybe_rotating
+
+    # -- wire ------------------------------------------------------------------------------
+
+    def _transact(self, name: str, **values: object) -> Values:
+        command = COMMANDS[name]
+        self._transport.write_line(command.request.encode(**values))
+        return decode_reply(command, self._transport.read_line())
+
+    def _after_fault(self, exc: BaseException) -> None:
+        if isinstance(exc, InstrumentTimeout | FramingError):
+            with contextlib.suppress(InstrumentError):
+                self._transport.discard_input()
+        if self._maybe_rotating:
+            self._emergency_stop()
+
+    def _emergency_stop(self) -> None:
+        """Send stop, once more if the first attempt fails; never raise."""
+        for _ in range(2):
+            try:
+                self._transact("stop")
+            except InstrumentError:
+                with contextlib.suppress(InstrumentError):
+                    self._transport.discard_input()
+                continue
+            self._maybe_rotating = False
+            return
+
+    # -- identity and state ----------------------------------------------------------------
+
+    @_stops_on_fault
+    def identify(self) -> str:
+        v = self._transact("identify")
+        return f"{v['model']} {v['serial']} firmware {v['firmware']}"
+
+    @_stops_on_fault
+    def status(self) -> RheometerStatus:
+        return self._status()
+
+    def _status(self) -> RheometerStatus:
+        v = self._transact("status")
+        flags = int(v["flags"])
+
+        def bit(name: str) -> bool:
+            return bool(flags & STATUS_FLAGS[name])
+
+        return RheometerStatus(
+            mode=_MODES[str(v["mode"])],
+            gap_moving=bit("gap_moving"),
+            gap_referenced=bit("gap_referenced"),
+            streaming=bit("streaming"),
+            accelerating=bit("accelerating"),
+            fault=bit("fault"),
+            overflow=bit("overflow"),
+        )
+
+    # -- gap -------------------------------------------------------------------------------
+
+    @_stops_on_fault
+    def zero_gap(self) -> None:
+        self._transact("zero_gap")
+        self._wait_for_lift()
+
+    @_stops_on_fault
+    def set_gap(self, gap: float, wait: bool = True) -> None:
+        deepest = self._deepest_gap()
+        if not (math.isfinite(gap) and deepest <= gap <= self._config.gap_max):
+            why = (
+                f" (overlap limit {self._config.overlap_limit * 1e3:g} mm below the touch gap "
+                f"{self.touch_gap * 1e3:g} mm)"
+                if self.touch_gap is not None
+                else ""
+            )
+            raise LimitError(
+                f"MCR 501: gap {gap * 1e3:g} mm outside the allowed "
+                f"[{deepest * 1e3:g}, {self._config.gap_max * 1e3:g}] mm{why}; nothing moved"
+            )
+        self._transact("set_gap", gap_mm=gap * 1e3)
+        if wait:
+            self._wait_for_lift()
+
+    def _deepest_gap(self) -> float:
+        if self.touch_gap is None:
+            return self._config.gap_min
+        return max(self._config.gap_min, self.touch_gap - self._config.overlap_limit)
+
+    def _wait_for_lift(self) -> None:
+        deadline = self._clock.now() + self._config.gap_move_timeout
+        while self._status().gap_moving:
+            if self._clock.now() >= deadline:
+                raise InstrumentTimeout(
+                    f"MCR 501: the lift did not arrive within {self._config.gap_move_timeout:g} s"
+                )
+            self._clock.sleep(self._config.poll_interval)
+
+    @_stops_on_fault
+    def gap(self) -> float:
+        return float(self._transact("read_gap")["gap_mm"]) * 1e-3
+
+    # -- rotation --------------------------------------------------------------------------
+
+    @_stops_on_fault
+    def rotate(self, speed: float) -> None:
+        """Turn at ``speed`` m/s at the arm; positive is clockwise (increasing angle)."""
+        if not self._config.speed_allowed(speed):
+            raise LimitError(
+                f"MCR 501: speed {speed:g} m/s beyond max_speed {self._config.max_speed:g} m/s;"
+                " not sent"
+            )
+        if speed == 0:
+            self._stop()
+            return
+        rpm = rpm_from_speed(abs(speed), self._config.arm)
+        self._maybe_rotating = True
+        self._transact("rotate", direction="CW" if speed > 0 else "CCW", rpm=rpm)
+
+    @_stops_on_fault
+    def stop(self) -> None:
+        self._stop()
+
+    def _stop(self) -> None:
+        self._transact("stop")
+        self._maybe_rotating = False
+
+    @_stops_on_fault
+    def hold(self) -> None:
+        self._transact("hold")
+        self._maybe_rotating = False
+
+    # -- readings --------------------------------------------------------------------------
+
+    @_stops_on_fault
+    def angle(self) -> float:
+        return math.radians(float(self._transact("read_angle")["angle_deg"]))
+
+    def theta(self) -> float:
+        return self.angle() * self._config.arm
+
+    @_stops_on_fault
+    def torque(self) -> float:
+        return float(self._transact("read_torque")["torque_mnm"]) * 1e-3
+
+    @_stops_on_fault
+    def normal_force(self) -> float:
+        return float(self._transact("read_normal_force")["force_n"])
+
+    # -- measurement stream ----------------------------------------------------------------
+
+    @_stops_on_fault
+    def start_stream(self, interval: float) -> None:
+        if not (math.isfinite(interval) and interval >= MIN_STREAM_INTERVAL):
+            raise LimitError(
+                f"MCR 501: stream interval {interval!r} s; allowed >= {MIN_STREAM_INTERVAL:g} s"
+            )
+        t0 = self._clock.now()
+        self._transact("start_stream", interval_s=interval)
+        self._stream_t0 = t0
+
+    @_stops_on_fault
+    def read_stream(self) -> list[StreamPoint]:
+        """Every point recorded since the last read; times on the caller's clock."""
+        t0 = 0.0 if self._stream_t0 is None else self._stream_t0
+        arm = self._config.arm
+        points: list[StreamPoint] = []
+        while True:
+            header = self._transact("read_stream")
+            for _ in range(int(header["count"])):
+                rec = decode_record(self._transport.read_line())
+                angle = math.radians(float(rec["angle_deg"]))
+                points.append(
+                    StreamPoint(
+                        t=t0 + float(rec["t_s"]),
+                        angle=angle,
+                        theta=angle * arm,
+                        torque=float(rec["torque_mnm"]) * 1e-3,
+                        normal_force=float(rec["force_n"]),
+                        gap=float(rec["gap_mm"]) * 1e-3,
+                    )
+                )
+            if int(header["remaining"]) == 0:
+                return points
+
+    @_stops_on_fault
+    def stop_stream(self) -> None:
+        self._transact("stop_stream")
+        self._stream_t0 = None
+
+    def close(self) -> None:
+        """Stop the arm if it may be turning, then release the transport."""
+        try:
+            if self._maybe_rotating:
+                self._emergency_stop()
+        finally:
+            self._transport.close()

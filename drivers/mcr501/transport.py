@@ -1,0 +1,163 @@
+"""Line transport of the MCR 501 over pyvisa, mapping VISA failures to typed errors.
+
+Any VISA resource string works: ``ASRL/dev/ttyUSB0::INSTR`` or ``ASRL1::INSTR`` for the
+instrument's RS-232 port (opened at 38400 baud, 8N1, XON/XOFF), or
+``TCPIP0::127.0.0.1::PORT::SOCKET`` for the simulator.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+from typing import Any, Protocol
+
+from drivers.mcr501.commands import BAUD_RATE, DATA_BITS, TERMINATION
+from instrument.errors import Disconnected, FramingError, InstrumentTimeout
+
+
+class LineTransport(Protocol):
+    """What the driver needs from a transport: lines out, lines in."""
+
+    def write_line(self, line: str) -> None:
+        """Send one line (termination added by the transport)."""
+        ...
+
+    def read_line(self) -> str:
+        """Receive one line without its termination; raise InstrumentTimeout if none comes."""
+        ...
+
+    def discard_input(self) -> None:
+        """Drop whatever has arrived but not been read (resynchronise after a fault)."""
+        ...
+
+    def close(self) -> None:
+        """Release the transport."""
+        ...
+
+
+def open_resource_manager(backend: str = "@py") -> Any:
+    """A pyvisa ResourceManager for ``backend`` (``"@py"``: pyvisa-py; ``""``: the default)."""
+    import pyvisa
+
+    return pyvisa.ResourceManager(backend) if backend else pyvisa.ResourceManager()
+
+
+class VisaTransport:
+    """A pyvisa message-based resource carrying the bracketed ASCII dialect.
+
+    ``timeout`` is the reply timeout in real seconds (VISA timeouts are wall-clock).
+    ``resource_manager`` is shared if given (and then not closed here).
+    """
+
+    def __init__(
+        self,
+        resource: str,
+        timeout: float = 2.0,
+        backend: str = "@py",
+        resource_manager: Any = None,
+        baud_rate: int = BAUD_RATE,
+    ):
+        import pyvisa
+        from pyvisa import constants
+
+        self._own_rm = resource_manager is None
+        self._rm = open_resource_manager(backend) if resource_manager is None else resource_manager
+        self.resource_name = resource
+        self._timeout_ms = max(1, round(timeout * 1000))
+        try:
+            self._res = self._rm.open_resource(
+                resource,
+                read_termination=TERMINATION,
+                write_termination=TERMINATION,
+                timeout=self._timeout_ms,
+                encoding="ascii",
+            )
+            if resource.upper().startswith("ASRL"):
+                self._res.baud_rate = baud_rate
+                self._res.data_bits = DATA_BITS
+                self._res.parity = constants.Parity.none
+                self._res.stop_bits = constants.StopBits.one
+                self._res.flow_control = constants.ControlFlow.xon_xoff
+        except (pyvisa.errors.VisaIOError, OSError, ValueError) as exc:
+            if self._own_rm:
+                self._rm.close()
+            raise Disconnected(f"MCR 501: cannot open {resource!r}: {exc}") from exc
+        self._closed = False
+
+    @property
+    def resource(self) -> Any:
+        """The underlying pyvisa resource (for inspection in tests)."""
+        return self._res
+
+    def _map(self, exc: Exception, doing: str) -> Exception:
+        import pyvisa
+        from pyvisa import constants
+
+        if isinstance(exc, pyvisa.errors.VisaIOError):
+            if exc.error_code == constants.StatusCode.error_timeout:
+                return InstrumentTimeout(
+                    f"MCR 501 on {self.resource_name}: no reply within "
+                    f"{self._timeout_ms / 1000:g} s while {doing}"
+                )
+            return Disconnected(f"MCR 501 on {self.resource_name}: {doing} failed: {exc}")
+        if isinstance(exc, UnicodeError):
+            return FramingError(f"MCR 501 on {self.resource_name}: non-ASCII bytes while {doing}")
+        return Disconnected(f"MCR 501 on {self.resource_name}: {doing} failed: {exc}")
+
+    def _peer_closed(self) -> bool:
+        """True if the resource is a socket whose peer has closed (pyvisa-py only).
+
+        pyvisa-py reports a closed TCP peer as a read timeout; peeking at its socket tells
+        the two apart so that a pulled cable reads as Disconnected.
+        """
+        try:
+            sock = self._rm.visalib.sessions[self._res.session].interface
+        except Exception:
+            return False
+        if not isinstance(sock, socket.socket):
+            return False
+        try:
+            return sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except BlockingIOError:
+            return False
+        except OSError:
+            return True
+
+    def write_line(self, line: str) -> None:
+        if self._closed:
+            raise Disconnected(f"MCR 501 on {self.resource_name}: transport closed")
+        try:
+            self._res.write(line)
+        except Exception as exc:
+            raise self._map(exc, f"sending {line!r}") from exc
+
+    def read_line(self) -> str:
+        if self._closed:
+            raise Disconnected(f"MCR 501 on {self.resource_name}: transport closed")
+        try:
+            return str(self._res.read())
+        except Exception as exc:
+            mapped = self._map(exc, "waiting for a reply")
+            if isinstance(mapped, InstrumentTimeout) and self._peer_closed():
+                mapped = Disconnected(f"MCR 501 on {self.resource_name}: connection closed")
+            raise mapped from exc
+
+    def discard_input(self) -> None:
+        if self._closed:
+            return
+        self._res.timeout = 20
+        # Read until the short timeout says the input is empty (the failure is the goal).
+        with contextlib.suppress(Exception):
+            for _ in range(10_000):
+                self._res.read_raw()
+        self._res.timeout = self._timeout_ms
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        with contextlib.suppress(Exception):
+            self._res.close()
+        if self._own_rm:
+            with contextlib.suppress(Exception):
+                self._rm.close()

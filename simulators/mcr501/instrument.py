@@ -1,0 +1,231 @@
+"""The simulated MCR 501: answers the driver's command table from the shear-cell physics.
+
+It reuses the driver's codec (drivers/mcr501): design.md allows that because independent
+clients (pyvisa-py, and a raw socket sending literal bytes) drive it in the tests. The state is
+computed lazily from ``clock.now()`` at each request. A trip (torque over range, normal-force
+overload) stops all motion at the moment it happens and is answered, instead of the command,
+to the next request.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+
+import numpy as np
+
+from drivers.mcr501.codec import RequestError, Values, decode_request, error_line
+from drivers.mcr501.commands import COMMANDS, MAX_RECORDS, RECORD, STATUS_FLAGS, Command
+from instrument.clock import Clock
+from simulators.mcr501.config import SimConfig
+from simulators.mcr501.faults import FaultPlan
+from simulators.mcr501.physics import ShearCell
+
+_RPM = 2.0 * math.pi / 60.0
+_MOTION = frozenset({"rotate", "stop", "hold", "set_gap"})
+
+
+def _quantize(value: float, step: float) -> float:
+    return round(value / step) * step
+
+
+class MCR501Simulator:
+    """The instrument: :meth:`handle` maps one request line to its reply lines.
+
+    ``faults`` injects line faults for tests. Thread-safe (one lock around each request).
+    """
+
+    def __init__(self, clock: Clock, config: SimConfig | None = None):
+        self.clock = clock
+        self.config = config if config is not None else SimConfig()
+        self.faults = FaultPlan()
+        self.cell = ShearCell(self.config, clock.now())
+        self.mode = "IDLE"
+        self.referenced = self.config.start_referenced
+        self.requests = 0
+        #: The latest request lines, oldest first (for tests and diagnostics).
+        self.log: deque[str] = deque(maxlen=200)
+        self._reported_trips = 0
+        self._fault_flag = False
+        self._stream_rng = np.random.default_rng(self.config.seed)
+        self._read_rng = np.random.default_rng([self.config.seed, 1])
+        self._lock = threading.Lock()
+        self._handlers = {
+            "identify": self._identify,
+            "status": self._status,
+            "zero_gap": self._zero_gap,
+            "set_gap": self._set_gap,
+            "read_gap": self._read_gap,
+            "rotate": self._rotate,
+            "stop": self._stop,
+            "hold": self._hold,
+            "read_angle": self._read_angle,
+            "read_torque": self._read_torque,
+            "read_normal_force": self._read_normal_force,
+            "start_stream": self._start_stream,
+            "stop_stream": self._stop_stream,
+            "read_stream": self._read_stream,
+        }
+        missing = set(COMMANDS) - set(self._handlers)
+        if missing:  # the simulator must serve exactly the table
+            raise RuntimeError(f"simulator lacks handlers for {sorted(missing)}")
+
+    # -- the wire ----------------------------------------------------------------------------
+
+    def handle(self, line: str) -> list[str]:
+        """The reply lines (without termination) to one request line."""
+        with self._lock:
+            self.requests += 1
+            self.log.append(line.strip())
+            return self.faults.apply(self._handle(line.strip()))
+
+    def _handle(self, line: str) -> list[str]:
+        now = self.clock.now()
+        try:
+            command, values = decode_request(line)
+        except RequestError as exc:
+            return [error_line(exc.code, exc.text)]
+        if self.faults.rejects(command.name):
+            return [error_line(10, f"unknown command {command.request.key}")]
+        if command.name in _MOTION:
+            self.cell.commit(now)  # a motion command is a breakpoint: integrate exactly to it
+        else:
+            self.cell.advance(now)
+        trip = self._unreported_trip()
+        if trip is not None:
+            return [trip]
+        try:
+            return self._handlers[command.name](command, values, now)
+        except RequestError as exc:
+            return [error_line(exc.code, exc.text)]
+
+    def _unreported_trip(self) -> str | None:
+        trips = self.cell.trips
+        if len(trips) == self._reported_trips:
+            return None
+        first = trips[self._reported_trips]
+        self._reported_trips = len(trips)
+        self.mode = "IDLE"
+        self._fault_flag = True
+        return error_line(first.code, f"{first.detail} at t = {first.t:.3f} s; motion stopped")
+
+    # -- commands ----------------------------------------------------------------------------
+
+    def _identify(self, command: Command, values: Values, now: float) -> list[str]:
+        model, serial, firmware = self.config.identity
+        return [command.reply.encode(model=model, serial=serial, firmware=firmware)]
+
+    def status_flags(self, now: float) -> int:
+        flags = 0
+        _, omega = self.cell.spin.state(now)
+        if self.cell.lift.moving(now):
+            flags |= STATUS_FLAGS["gap_moving"]
+        if self.referenced:
+            flags |= STATUS_FLAGS["gap_referenced"]
+        if self.cell.streaming:
+            flags |= STATUS_FLAGS["streaming"]
+        if omega != self.cell.spin.target:
+            flags |= STATUS_FLAGS["accelerating"]
+        if self._fault_flag:
+            flags |= STATUS_FLAGS["fault"]
+        if self.cell.overflowed:
+            flags |= STATUS_FLAGS["overflow"]
+        return flags
+
+    def _status(self, command: Command, values: Values, now: float) -> list[str]:
+        return [command.reply.encode(mode=self.mode, flags=self.status_flags(now))]
+
+    def _ok(self, command: Command) -> list[str]:
+        return [command.reply.encode()]
+
+    def _zero_gap(self, command: Command, values: Values, now: float) -> list[str]:
+        self.referenced = True
+        return self._ok(command)
+
+    def _set_gap(self, command: Command, values: Values, now: float) -> list[str]:
+        if not self.referenced:
+            raise RequestError(12, "gap not referenced; send :GAPZ[] first")
+        gap = float(values["gap_mm"]) * 1e-3
+        cfg = self.config
+        if not cfg.gap_min <= gap <= cfg.gap_max:
+            raise RequestError(
+                13, f"gap {gap * 1e3:g} mm outside [{cfg.gap_min * 1e3:g}, {cfg.gap_max * 1e3:g}]"
+            )
+        self._fault_flag = False
+        self.cell.set_gap(now, gap)
+        return self._ok(command)
+
+    def _read_gap(self, command: Command, values: Values, now: float) -> list[str]:
+        return [command.reply.encode(gap_mm=self.cell.lift.gap(now) * 1e3)]
+
+    def _rotate(self, command: Command, values: Values, now: float) -> list[str]:
+        rpm = float(values["rpm"])
+        if not 0 <= rpm <= self.config.max_rpm:
+            raise RequestError(13, f"speed {rpm:g} rpm outside [0, {self.config.max_rpm:g}]")
+        sign = 1.0 if values["direction"] == "CW" else -1.0
+        self._fault_flag = False
+        self.cell.set_speed(now, sign * rpm * _RPM)
+        self.mode = "ROT" if rpm > 0 else "IDLE"
+        return self._ok(command)
+
+    def _stop(self, command: Command, values: Values, now: float) -> list[str]:
+        self.cell.set_speed(now, 0.0)
+        self.mode = "IDLE"
+        return self._ok(command)
+
+    def _hold(self, command: Command, values: Values, now: float) -> list[str]:
+        self.cell.set_speed(now, 0.0)
+        self.mode = "HOLD"
+        return self._ok(command)
+
+    def _read_angle(self, command: Command, values: Values, now: float) -> list[str]:
+        phi, _ = self.cell.spin.state(now)
+        return [command.reply.encode(angle_deg=math.degrees(phi))]
+
+    def measured_torque(self, value: float, rng: np.random.Generator) -> float:
+        """Torque as the sensor reports it: noise, then resolution (N m)."""
+        noisy = value + self.config.torque_noise * float(rng.standard_normal())
+        return _quantize(noisy, self.config.torque_resolution)
+
+    def measured_force(self, value: float, rng: np.random.Generator) -> float:
+        """Normal force as the sensor reports it: noise, then resolution (N)."""
+        noisy = value + self.config.normal_force_noise * float(rng.standard_normal())
+        return _quantize(noisy, self.config.normal_force_resolution)
+
+    def _read_torque(self, command: Command, values: Values, now: float) -> list[str]:
+        m = self.measured_torque(self.cell.forces(now).torque, self._read_rng)
+        return [command.reply.encode(torque_mnm=m * 1e3)]
+
+    def _read_normal_force(self, command: Command, values: Values, now: float) -> list[str]:
+        f = self.measured_force(self.cell.forces(now).f_v, self._read_rng)
+        return [command.reply.encode(force_n=f)]
+
+    def _start_stream(self, command: Command, values: Values, now: float) -> list[str]:
+        interval = float(values["interval_s"])
+        if not 1e-3 <= interval <= 3600.0:
+            raise RequestError(13, f"interval {interval:g} s outside [0.001, 3600]")
+        self.cell.start_stream(now, interval)
+        self.cell.overflowed = False
+        return self._ok(command)
+
+    def _stop_stream(self, command: Command, values: Values, now: float) -> list[str]:
+        self.cell.stop_stream(now)
+        return self._ok(command)
+
+    def _read_stream(self, command: Command, values: Values, now: float) -> list[str]:
+        samples = self.cell.samples
+        batch = samples[:MAX_RECORDS]
+        del samples[:MAX_RECORDS]
+        lines = [command.reply.encode(count=len(batch), remaining=len(samples))]
+        for s in batch:
+            lines.append(
+                RECORD.encode(
+                    t_s=s.t,
+                    angle_deg=math.degrees(s.angle),
+                    torque_mnm=self.measured_torque(s.torque, self._stream_rng) * 1e3,
+                    force_n=self.measured_force(s.normal_force, self._stream_rng),
+                    gap_mm=s.gap * 1e3,
+                )
+            )
+        return lines

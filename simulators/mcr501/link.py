@@ -1,0 +1,39 @@
+"""A socket-free line transport straight into a simulator, for fast in-process work.
+
+It meets the driver's LineTransport contract structurally (no import of the driver), so a
+protocol test or a benchmark can run the real driver code without a TCP round trip.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from instrument.errors import Disconnected, InstrumentTimeout
+from simulators.mcr501.instrument import MCR501Simulator
+
+
+class DirectLink:
+    """Lines go to :meth:`MCR501Simulator.handle`; replies queue until read."""
+
+    def __init__(self, simulator: MCR501Simulator):
+        self.simulator = simulator
+        self._pending: deque[str] = deque()
+        self._closed = False
+
+    def write_line(self, line: str) -> None:
+        if self._closed:
+            raise Disconnected("MCR 501 direct link closed")
+        self._pending.extend(self.simulator.handle(line))
+
+    def read_line(self) -> str:
+        if self._closed:
+            raise Disconnected("MCR 501 direct link closed")
+        if not self._pending:
+            raise InstrumentTimeout("MCR 501 direct link: no reply pending")
+        return self._pending.popleft()
+
+    def discard_input(self) -> None:
+        self._pending.clear()
+
+    def close(self) -> None:
+        self._closed = True

@@ -1,0 +1,293 @@
+"""Two hydrogel spheres on the rheometer: the contact, integrated lazily along the motion.
+
+Geometry (physics.md section 2, arc treated as a straight line): the upper centre sits at
+``x = wrap(angle - lower_angle) * arm`` along the arc from the lower centre (positive
+clockwise) and at vertical centre distance ``h = R1 + R2 - (touch_gap - gap)``. The overlap is
+``delta = R1 + R2 - hypot(h, x)``; the normal force comes from one
+:class:`instrument.contact.NormalContact` stepped through the whole trajectory in order, so a
+new pass meets the history left by the previous one, decayed.
+
+Forces are resolved in the frame of the motion (``psi = -s x`` with ``s = sign(omega)``) by
+:func:`instrument.sliding.resolve_forces`, then the lab-frame torque is
+``M = s F_h arm + s offset``: positive for a clockwise pass while the contact resists, and
+mirrored for a counter-clockwise pass (docs/decisions/0022). At rest there is no friction
+direction, so the mu term is dropped (``s = 0``; the frame of a clockwise pass is used).
+
+Integration runs on a grid fixed by the motion alone: each piece between breakpoints (command
+times, ramp ends, lift arrivals, trips) is cut into steps of at most ``substep_travel`` of
+travel and ``max_substep`` of time, anchored at the piece start, plus the stream's sample
+times. How often a client polls therefore never changes the result; a reading between grid
+nodes is a non-committing step from the last node.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from instrument.contact import NormalContact, effective_radius
+from instrument.sliding import resolve_forces
+from simulators.mcr501.config import SimConfig
+from simulators.mcr501.motion import FloatArray, Lift, Spin
+
+#: Most grid nodes integrated in one block.
+CHUNK = 20_000
+#: Trip codes (as in the command table's error codes).
+TRIP_OVERLOAD = 31
+TRIP_TORQUE = 32
+
+
+@dataclass(frozen=True)
+class Trip:
+    """The instrument stopped itself: ``code`` at time ``t`` (s), arm ``angle`` (rad), ``gap``."""
+
+    code: int
+    t: float
+    detail: str
+    angle: float
+    gap: float
+
+
+@dataclass(frozen=True)
+class Sample:
+    """True (noise-free) values at one stream sample time."""
+
+    t: float
+    angle: float
+    torque: float
+    normal_force: float
+    gap: float
+
+
+@dataclass(frozen=True)
+class Forces:
+    """True values at one instant: overlap (m), F_perp, F_h (moving frame), F_v (N), torque."""
+
+    delta: float
+    f_perp: float
+    f_h: float
+    f_v: float
+    torque: float
+
+
+class ShearCell:
+    """The arm, the lift and the contact, advanced lazily to a requested time."""
+
+    def __init__(self, config: SimConfig, t0: float):
+        self.cfg = config
+        self.spin = Spin(t0, config.start_angle, 0.0, 0.0, config.acceleration)
+        self.lift = Lift(t0, config.start_gap, config.start_gap, config.lift_speed)
+        self.contact = NormalContact(config.material, effective_radius(config.r1, config.r2))
+        self.t_int = t0
+        self._anchor = t0
+        self._stream: tuple[float, float, int] | None = None  # (t_start, interval, next k)
+        self.samples: list[Sample] = []
+        self.trips: list[Trip] = []
+        self.overflowed = False
+        # Overlap, |F_v| and |torque| at the last node: a limit trips when entered or deepened,
+        # so motion that backs out of a violation stays possible.
+        self._prev = (-math.inf, 0.0, 0.0)
+
+    # -- commands (each is a breakpoint of the motion) --------------------------------------
+
+    def set_speed(self, t: float, omega: float) -> None:
+        """New set speed (rad/s, + clockwise) from ``t``."""
+        self.commit(t)
+        self.spin = self.spin.command(t, omega)
+
+    def set_gap(self, t: float, gap: float) -> None:
+        """New lift target (m) from ``t``."""
+        self.commit(t)
+        self.lift = self.lift.command(t, gap)
+
+    def start_stream(self, t: float, interval: float) -> None:
+        """Sample at ``t + k interval``, k = 1, 2, ...; earlier samples are discarded."""
+        self.advance(t)
+        self._stream = (t, interval, 1)
+        self.samples.clear()
+
+    def stop_stream(self, t: float) -> None:
+        self.advance(t)
+        self._stream = None
+        self.samples.clear()
+
+    @property
+    def streaming(self) -> bool:
+        return self._stream is not None
+
+    # -- evaluation --------------------------------------------------------------------------
+
+    def geometry(self, phi: FloatArray, gap: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Arc offset x (m) of the upper centre from the lower, and vertical distance h (m)."""
+        rel = np.remainder(phi - self.cfg.lower_angle + math.pi, 2.0 * math.pi) - math.pi
+        x = rel * self.cfg.arm
+        h = self.cfg.s - (self.cfg.touch_gap - gap)
+        return x, h
+
+    def overlap(self, t: FloatArray) -> FloatArray:
+        phi, _ = self.spin.at(t)
+        x, h = self.geometry(phi, self.lift.at(t))
+        return self.cfg.s - np.hypot(h, x)
+
+    def _resolve(
+        self, f_perp: FloatArray, x: FloatArray, h: FloatArray, omega: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """F_h in the moving frame, F_v, and the lab-frame motor torque."""
+        s = np.sign(omega)
+        frame = np.where(s == 0, 1.0, s)
+        f_h = np.empty_like(f_perp)
+        f_v = np.empty_like(f_perp)
+        for mu, mask in ((self.cfg.mu, s != 0), (0.0, s == 0)):
+            if not mask.any():
+                continue
+            # resolve_forces is scale-free in (psi, h): pass psi/h with h = 1 to allow an
+            # h that varies while the lift moves.
+            fh, fv = resolve_forces(f_perp[mask], -frame[mask] * x[mask] / h[mask], 1.0, mu)
+            f_h[mask] = fh
+            f_v[mask] = fv
+        torque = frame * f_h * self.cfg.arm + s * self.cfg.torque_offset
+        return f_h, f_v, torque
+
+    def forces(self, t: float) -> Forces:
+        """True values at ``t`` (>= the integrated time), without committing the state."""
+        self.advance(t)
+        saved = self._save()
+        try:
+            tt = np.array([t])
+            phi, omega = self.spin.at(tt)
+            gap = self.lift.at(tt)
+            x, h = self.geometry(phi, gap)
+            delta = self.cfg.s - np.hypot(h, x)
+            f_perp = np.array([self.contact.step(t, float(delta[0]))])
+            f_h, f_v, torque = self._resolve(f_perp, x, h, omega)
+        finally:
+            self._restore(saved)
+        return Forces(float(delta[0]), float(f_perp[0]), float(f_h[0]), float(f_v[0]),
+                      float(torque[0]))  # fmt: skip
+
+    # -- lazy integration --------------------------------------------------------------------
+
+    def _save(self) -> tuple[float | None, float, FloatArray]:
+        c = self.contact
+        return c.t_last, c.x_last, c.h.copy()
+
+    def _restore(self, saved: tuple[float | None, float, FloatArray]) -> None:
+        self.contact.t_last, self.contact.x_last, self.contact.h = saved[0], saved[1], saved[2]
+
+    def commit(self, t: float) -> None:
+        """Integrate exactly to ``t`` and start a new piece there."""
+        self.advance(t, exact=True)
+        self._anchor = t
+
+    def _next_breakpoint(self) -> float:
+        ends = [b for b in (self.spin.ramp_end, self.lift.end) if b > self._anchor]
+        return min(ends, default=math.inf)
+
+    def _step(self, a: float, b: float) -> float:
+        end = b if math.isfinite(b) else a + 1.0
+        rate = self.spin.peak_speed(a, end) * self.cfg.arm + self.lift.rate(a, end)
+        if rate <= 0:
+            return self.cfg.max_substep
+        return min(self.cfg.max_substep, self.cfg.substep_travel / rate)
+
+    def _sample_times(self, lo: float, hi: float) -> FloatArray:
+        if self._stream is None:
+            return np.empty(0)
+        t_start, interval, k_next = self._stream
+        k_hi = math.floor((hi - t_start) / interval + 1e-9)
+        if k_hi < k_next:
+            return np.empty(0)
+        times = t_start + interval * np.arange(k_next, k_hi + 1, dtype=np.float64)
+        return times[(times > lo) & (times <= hi)]
+
+    def advance(self, t: float, exact: bool = False) -> None:
+        """Integrate every grid node up to ``t`` (and ``t`` itself if ``exact``)."""
+        while self.t_int < t:
+            a = self._anchor
+            b = self._next_breakpoint()
+            dt = self._step(a, b)
+            k0 = math.floor((self.t_int - a) / dt) + 1
+            wanted = math.floor((min(b, t) - a) / dt) - k0 + 2 if math.isfinite(t) else CHUNK
+            grid = a + dt * np.arange(k0, k0 + min(CHUNK, max(wanted, 0)), dtype=np.float64)
+            grid = grid[(grid > self.t_int) & (grid < b) & (grid <= t)]
+            full = grid.size == CHUNK
+            reach_b = not full and b <= t
+            upper = float(grid[-1]) if full else (b if reach_b else t)
+            parts = [grid, self._sample_times(self.t_int, upper)]
+            if reach_b:
+                parts.append(np.array([b]))
+            elif exact and not full:
+                parts.append(np.array([t]))
+            nodes = np.unique(np.concatenate(parts))
+            nodes = nodes[nodes > self.t_int]
+            if nodes.size:
+                self._integrate(nodes)
+            if self._anchor != a:  # a trip started a new piece
+                continue
+            if reach_b:
+                self._anchor = b
+            if not full and not reach_b:
+                break
+
+    def _integrate(self, nodes: FloatArray) -> None:
+        phi, omega = self.spin.at(nodes)
+        gap = self.lift.at(nodes)
+        x, h = self.geometry(phi, gap)
+        delta = self.cfg.s - np.hypot(h, x)
+        saved = self._save()
+        f_perp = self.contact.block(nodes, delta)
+        _, f_v, torque = self._resolve(f_perp, x, h, omega)
+        abs_fv, abs_m = np.abs(f_v), np.abs(torque)
+        p_delta, p_fv, p_m = (
+            np.concatenate(([p], v[:-1]))
+            for p, v in zip(self._prev, (delta, abs_fv, abs_m), strict=True)
+        )
+        over = ((delta > self.cfg.overlap_limit) & (delta > p_delta)) | (
+            (abs_fv > self.cfg.normal_force_range) & (abs_fv > p_fv)
+        )
+        over_t = (abs_m > self.cfg.torque_range) & (abs_m > p_m)
+        tripped = np.flatnonzero(over | over_t)
+        n = nodes.size
+        if tripped.size:
+            i = int(tripped[0])
+            n = i + 1
+            self._restore(saved)
+            self.contact.block(nodes[:n], delta[:n])
+            if over[i]:
+                detail = f"normal force overload at overlap {delta[i] * 1e3:.3f} mm"
+                code = TRIP_OVERLOAD
+            else:
+                detail = f"torque over range ({torque[i] * 1e3:.4f} mN m)"
+                code = TRIP_TORQUE
+            trip = Trip(code, float(nodes[i]), detail, float(phi[i]), float(gap[i]))
+            self.trips.append(trip)
+            t_trip = float(nodes[i])
+            self.spin = self.spin.halt(t_trip)
+            self.lift = self.lift.halt(t_trip)
+            self._anchor = t_trip
+        self.t_int = float(nodes[n - 1])
+        self._prev = (float(delta[n - 1]), float(abs_fv[n - 1]), float(abs_m[n - 1]))
+        self._record(nodes[:n], phi[:n], torque[:n], f_v[:n], gap[:n])
+
+    def _record(
+        self, t: FloatArray, phi: FloatArray, torque: FloatArray, f_v: FloatArray, gap: FloatArray
+    ) -> None:
+        if self._stream is None:
+            return
+        t_start, interval, k_next = self._stream
+        k = np.rint((t - t_start) / interval)
+        hit = np.flatnonzero(
+            (k >= k_next)
+            & np.isclose(t, t_start + k * interval, rtol=0, atol=1e-9 * max(1.0, interval))
+        )
+        for i in hit:
+            self.samples.append(Sample(float(t[i]) - t_start, float(phi[i]), float(torque[i]),
+                                       float(f_v[i]), float(gap[i])))  # fmt: skip
+        if hit.size:
+            self._stream = (t_start, interval, int(k[hit[-1]]) + 1)
+        excess = len(self.samples) - self.cfg.stream_buffer
+        if excess > 0:
+            del self.samples[:excess]
+            self.overflowed = True

@@ -1,0 +1,72 @@
+"""Serve a simulated MCR 501 rheometer (two hydrogel spheres on the shear arm) over TCP.
+
+``gelrig sim serve mcr501 --port 5025 --clock paced:10`` prints where it listens; connect with
+pyvisa as ``TCPIP0::HOST::PORT::SOCKET`` (read and write termination CR LF). The clock is real
+or paced (virtual time at K x real time); a purely virtual clock needs a client in the same
+process, so it is not offered here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import replace
+
+from instrument.clock import Clock, RealClock, VirtualClock, clock_from_spec
+from instrument.errors import ConfigError
+from instrument.units import to_si
+from simulators.mcr501.config import SimConfig
+from simulators.mcr501.instrument import MCR501Simulator
+from simulators.mcr501.server import SimulatorServer
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
+    parser.add_argument("--port", type=int, default=5025, help="TCP port (0: any free port)")
+    parser.add_argument("--clock", default="real", help="real or paced:K (K x real time)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
+    parser.add_argument(
+        "--lower-angle", default="0.8", help="lower sphere position (rad or '45 deg')"
+    )
+    parser.add_argument("--touch-gap", default="3 mm", help="gap where the spheres touch on top")
+    parser.add_argument(
+        "--duration", type=float, default=math.inf, help="stop after this many real seconds"
+    )
+
+
+def build(args: argparse.Namespace) -> tuple[Clock, MCR501Simulator]:
+    """The clock and simulator described by the command line (ConfigError on bad values)."""
+    clock = clock_from_spec(args.clock)
+    if isinstance(clock, VirtualClock):
+        raise ConfigError("--clock", args.clock, "allowed: real, paced:K (a served simulator "
+                          "needs time that advances by itself)")  # fmt: skip
+    if not 0 <= args.port <= 65535:
+        raise ConfigError("--port", args.port, "allowed 0..65535")
+    config = replace(
+        SimConfig(),
+        seed=args.seed,
+        lower_angle=to_si(args.lower_angle, "rad", "--lower-angle"),
+        touch_gap=to_si(args.touch_gap, "m", "--touch-gap"),
+    )
+    return clock, MCR501Simulator(clock, config)
+
+
+def run(args: argparse.Namespace) -> int:
+    clock, sim = build(args)
+    server = SimulatorServer(sim, args.host, args.port).start()
+    kind = "real time" if isinstance(clock, RealClock) else args.clock
+    print(
+        f"mcr501 simulator listening on {server.host}:{server.port} ({kind}); "
+        f"VISA resource {server.resource}",
+        flush=True,
+    )
+    deadline = time.monotonic() + args.duration
+    try:
+        while time.monotonic() < deadline:
+            time.sleep(min(0.1, max(0.0, deadline - time.monotonic())))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+    return 0
