@@ -200,6 +200,30 @@ class RunDirectory:
         """Index -> record of every step that completed (what a resume skips)."""
         return {s["index"]: s for s in self.read_metadata()["steps"] if s["status"] == "completed"}
 
+    def archive_incomplete(self) -> list[str]:
+        """Before a resume: seal every step file a crash left open and keep it under a new
+        name (``NN_name.attempt-K.h5``), listed in ``interrupted_steps``; nothing is lost."""
+        meta = self.read_metadata()
+        kept, archived = [], []
+        for step in meta["steps"]:
+            if step["status"] == "completed":
+                kept.append(step)
+                continue
+            path = self.path / step["file"]
+            if path.exists():
+                seal_step(path)
+                k = 1
+                while (target := path.with_name(f"{path.stem}.attempt-{k}.h5")).exists():
+                    k += 1
+                path.replace(target)
+                step = {**step, "file": str(target.relative_to(self.path))}
+            step["status"] = "interrupted" if step["status"] == "running" else step["status"]
+            archived.append(step)
+        meta["steps"] = kept
+        meta.setdefault("interrupted_steps", []).extend(archived)
+        self.write_metadata(meta)
+        return [s["file"] for s in archived]
+
     def read_step(self, index: int) -> dict[str, FloatArray]:
         """Columns of one step (also from a file left open by a crash)."""
         for step in self.read_metadata()["steps"]:

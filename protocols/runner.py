@@ -87,8 +87,9 @@ class Runner:
                 raise
             self.results[index] = results
             self.bus.publish(StepFinished(clock.now(), index, step.name, "completed", results))
+        self.reason = "all steps completed"
         self._set_state(RunState.COMPLETED)
-        self.bus.publish(Finished(clock.now(), RunState.COMPLETED, "all steps completed"))
+        self.bus.publish(Finished(clock.now(), RunState.COMPLETED, self.reason))
         return self.state
 
     def _end(self, index: int, name: str, state: RunState, status: str, reason: str) -> RunState:

@@ -32,6 +32,7 @@ class ArmRecorder:
         self.labels = {"pass": -1.0, "direction": 0.0, "speed_m_s": 0.0, "overlap_m": math.nan}
         self.kept: list[dict[str, FloatArray]] = []
         self.keep = False
+        self._trend: dict[str, tuple[float, float]] = {}  # column -> (last |value|, rate /s)
         self.rheo.start_stream(interval)
 
     def _publish(self, points: list[StreamPoint]) -> dict[str, FloatArray] | None:
@@ -48,10 +49,39 @@ class ArmRecorder:
         }
         for key, value in self.labels.items():
             data[key] = np.full(n, value)
+        self._update_trend(data)
         if self.keep:
             self.kept.append(data)
         self.ctx.emit(data)
         return data
+
+    def _update_trend(self, data: dict[str, FloatArray]) -> None:
+        t = data["t_s"]
+        for il in self.ctx.interlocks:
+            v = np.abs(data.get(il.column, np.empty(0)))
+            if v.size == 0:
+                continue
+            prev = self._trend.get(il.column)
+            if v.size >= 2 and t[-1] > t[0]:
+                rate = float(v[-1] - v[0]) / float(t[-1] - t[0])
+            elif prev is not None:
+                rate = (float(v[-1]) - prev[0]) / max(self.interval, 1e-9)
+            else:
+                rate = 0.0
+            self._trend[il.column] = (float(v[-1]), rate)
+
+    def next_read(self) -> float:
+        """Lab time to the next read: the read period, shortened to one stream interval when
+        a watched quantity could reach its interlock limit before then (so a trip is seen
+        within one sample)."""
+        wait = self.read_period
+        for il in self.ctx.interlocks:
+            last, rate = self._trend.get(il.column, (0.0, 0.0))
+            room = il.limit - last
+            if room <= 0 or (rate > 0 and room / rate < 2 * self.read_period) \
+                    or last > 0.5 * il.limit:
+                return self.interval
+        return wait
 
     def poll(self) -> dict[str, FloatArray] | None:
         self.ctx.tick()
@@ -61,7 +91,7 @@ class ArmRecorder:
         clock = self.ctx.clock
         end = clock.now() + duration
         while clock.now() < end - 1e-12:
-            clock.sleep(min(self.read_period, end - clock.now()))
+            clock.sleep(min(self.next_read(), end - clock.now()))
             self.poll()
 
     def turn_to(self, angle: float, speed: float,
@@ -87,10 +117,10 @@ class ArmRecorder:
                 remaining = (angle - now_angle) * direction * self.arm
                 if remaining <= 0:
                     break
-                step = remaining / abs(speed)
+                step = min(remaining / abs(speed), self.next_read())
                 if stop_above is not None:
                     step = min(step, self.read_period)
-                clock.sleep(min(max(step, self.interval), self.read_period * 4))
+                clock.sleep(max(step, self.interval))
         finally:
             self.rheo.stop()
         self.settle()

@@ -94,6 +94,8 @@ class SpeedLadder(StepDefinition):
             Interlock("torque", "torque_Nm", rig.limits.max_torque, "N*m"),
             Interlock("normal force", "normal_force_N", rig.limits.max_normal_force, "N"),
         )
+        if not rheo.status().gap_referenced:
+            rheo.zero_gap()
         rec = ArmRecorder(ctx, params["interval"], params["read_period"])
         half = params["travel"] / 2 / arm
         start, end = centre - half, centre + half
