@@ -1,0 +1,412 @@
+"""The KDC101 + Z825B stage over APT: a ``Stage`` on any pyserial port or URL.
+
+``KDC101("COM3")``, ``KDC101("/dev/ttyUSB0")``, ``KDC101("socket://host:port")`` or
+``KDC101("kdc101sim://name", clock=clock)`` all run the same code. Every wait goes through the
+injected clock; bad bytes are skipped (the framer resynchronises) and a lost reply is asked
+for once more; timeouts, device error replies and a vanished port raise typed errors, and a
+fault while the stage may be moving first commands MOT_MOVE_STOP.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
+
+import serial
+from serial.serialutil import SerialBase, SerialException
+
+from drivers.kdc101 import payloads as pl
+from drivers.kdc101.apt import (
+    CHANNEL,
+    AptFramer,
+    AptFramingError,
+    Message,
+    MsgId,
+    command,
+    data_message,
+    encode,
+    message_name,
+)
+from instrument.clock import Clock, RealClock
+from instrument.errors import (
+    DeviceErrorReply,
+    Disconnected,
+    FramingError,
+    InstrumentError,
+    InstrumentTimeout,
+)
+from instrument.stage import StageConfig, StageIdentity, StageStatus
+
+BAUD = 115200
+COMPLETIONS = {MsgId.MOT_MOVE_COMPLETED, MsgId.MOT_MOVE_STOPPED, MsgId.MOT_MOVE_HOMED}
+KEEPALIVE_PERIOD_S = 0.5  # the controller wants an ack at least once a second
+SOFT_LIMIT_STOP_PROFILED = 3  # LIMSWITCHPARAMS software-limit mode
+ARRIVAL_TOLERANCE_COUNTS = 2
+
+
+class KDC101:
+    """Thorlabs KDC101 K-Cube DC servo controller with a Z825B actuator (implements Stage).
+
+    Args:
+        port: a port name or pyserial URL, or an already open pyserial port.
+        config: calibration, software limits and timing (``StageConfig``).
+        clock: what every wait goes through (the simulator's clock in virtual time).
+        status_updates: ask for status messages every 100 ms (and keep them alive).
+    """
+
+    def __init__(
+        self,
+        port: str | SerialBase,
+        config: StageConfig | None = None,
+        clock: Clock | None = None,
+        *,
+        status_updates: bool = False,
+    ):
+        self.config = config or StageConfig()
+        self.clock: Clock = clock or RealClock()
+        self._framer = AptFramer()
+        self.framing_errors = 0
+        self.ignored_messages = 0
+        self.rts_supported = True
+        self._maybe_moving = False
+        self._status_updates = status_updates
+        self._last_ack = -1e300
+        self._last_update = -1e300
+        self.last_status_update: pl.DcStatus | None = None
+        self._port_timeout: float | None = None
+        if isinstance(port, str):
+            self.address = port
+            try:
+                self._port = serial.serial_for_url(port, baudrate=BAUD, bytesize=8, parity="N",
+                                                   stopbits=1, rtscts=False, timeout=0)
+            except (SerialException, OSError, ValueError) as exc:
+                raise Disconnected(f"KDC101: cannot open {port!r}: {exc}") from exc
+        else:
+            self._port = port
+            self.address = str(port.port)
+        try:
+            self._open_sequence()
+            self.identity = self.identify()
+            self.enable()
+            self._configure()
+        except BaseException:
+            self._close_port()
+            raise
+
+    # ---- the open sequence ------------------------------------------------------------
+    def _open_sequence(self) -> None:
+        """Baud set; 50 ms; purge; 50 ms; RTS/CTS on; RTS set (a pty can't: tolerated)."""
+        self.clock.sleep(0.05)
+        try:
+            self._port.reset_input_buffer()
+            self._port.reset_output_buffer()
+        except (SerialException, OSError) as exc:
+            raise Disconnected(f"KDC101 at {self.address}: purge failed: {exc}") from exc
+        self.clock.sleep(0.05)
+        try:
+            self._port.rtscts = True
+            self._port.rts = True
+        except (SerialException, OSError, ValueError):
+            self.rts_supported = False  # e.g. a Linux pty: errno 25, no modem lines
+        self._send(command(MsgId.HW_NO_FLASH_PROGRAMMING))
+        self._send(command(MsgId.HW_START_UPDATEMSGS if self._status_updates
+                           else MsgId.HW_STOP_UPDATEMSGS))
+        if self._status_updates:
+            self._last_update = self._last_ack = self.clock.now()
+
+    def _configure(self) -> None:
+        """Velocity, homing velocity and controller soft limits from the configuration."""
+        c = self.config
+        self.set_velocity(c.max_velocity_m_s, c.acceleration_m_s2)
+        home = self.home_params()
+        self._send(data_message(MsgId.MOT_SET_HOMEPARAMS, pl.HomeParams(
+            home.direction, home.limit_switch, c.apt_velocity(c.home_velocity_m_s),
+            home.offset).pack()))
+        lim = self.limit_switch_params()
+        self._send(data_message(MsgId.MOT_SET_LIMSWITCHPARAMS, pl.LimSwitchParams(
+            lim.cw_hard, lim.ccw_hard, c.counts_from_m(c.max_position_m),
+            c.counts_from_m(c.min_position_m), SOFT_LIMIT_STOP_PROFILED).pack()))
+        if self.home_params().velocity != c.apt_velocity(c.home_velocity_m_s):
+            raise InstrumentError(f"KDC101 at {self.address}: home velocity not accepted")
+
+    # ---- bytes ------------------------------------------------------------------------
+    def _send(self, msg: Message) -> None:
+        try:
+            self._port.write(encode(msg))
+        except (SerialException, OSError, ValueError) as exc:
+            raise Disconnected(f"KDC101 at {self.address}: write failed: {exc}") from exc
+
+    def _read_chunk(self, deadline: float) -> None:
+        remaining = deadline - self.clock.now()
+        if remaining <= 0:
+            return
+        if self._port_timeout != remaining:
+            self._port.timeout = remaining
+            self._port_timeout = remaining
+        try:
+            size = max(1, self._port.in_waiting)
+            chunk = self._port.read(size)
+        except (SerialException, OSError, ValueError) as exc:
+            raise Disconnected(f"KDC101 at {self.address}: read failed: {exc}") from exc
+        if chunk:
+            self._framer.feed(chunk)
+        else:
+            self.clock.sleep_until(deadline)  # the port waited; keep the clock in step
+
+    def _await(self, wanted: Callable[[Message], bool], deadline: float) -> Message | None:
+        """The next wanted message before ``deadline`` (clock time), or None.
+
+        Error replies raise DeviceErrorReply; status updates are kept and acknowledged;
+        anything else unsolicited is ignored.
+        """
+        while True:
+            self._keepalive()
+            try:
+                msg = self._framer.next_message()
+            except AptFramingError:
+                self.framing_errors += 1
+                continue
+            if msg is None:
+                if self.clock.now() >= deadline:
+                    return None
+                self._read_chunk(deadline)
+                continue
+            if msg.msg_id == MsgId.HW_RICHRESPONSE and msg.data is not None:
+                rich = pl.RichResponse.unpack(msg.data)
+                raise DeviceErrorReply(
+                    f"KDC101 at {self.address} refused {message_name(rich.msg_id)}: "
+                    f"{rich.text} (code {rich.code})", rich.code)
+            if msg.msg_id == MsgId.HW_RESPONSE:
+                raise DeviceErrorReply(f"KDC101 at {self.address} reported an error "
+                                       f"(HW_RESPONSE, param {msg.param1})", msg.param1)
+            if msg.msg_id == MsgId.MOT_GET_DCSTATUSUPDATE and msg.data is not None:
+                self.last_status_update = pl.DcStatus.unpack(msg.data)
+                self._last_update = self.clock.now()
+            if wanted(msg):
+                return msg
+            if msg.msg_id not in COMPLETIONS and msg.msg_id != MsgId.MOT_GET_DCSTATUSUPDATE:
+                self.ignored_messages += 1
+
+    def _keepalive(self) -> None:
+        if not self._status_updates:
+            return
+        now = self.clock.now()
+        if now - self._last_update > 1.0:
+            # The stream stopped (about 50 unacknowledged messages): ask for it again.
+            self._send(command(MsgId.HW_START_UPDATEMSGS))
+            self._last_update = self._last_ack = now
+        elif now - self._last_ack >= KEEPALIVE_PERIOD_S:
+            self._send(command(MsgId.MOT_ACK_DCSTATUSUPDATE))
+            self._last_ack = now
+
+    def _query(self, request: Message, reply_id: int, timeout: float | None = None) -> Message:
+        """Send ``request`` and return its reply; ask once more if garbage ate the reply."""
+        timeout = self.config.reply_timeout_s if timeout is None else timeout
+        errors_before = self.framing_errors
+        for attempt in (1, 2):
+            self._send(request)
+            reply = self._await(lambda m: m.msg_id == reply_id,
+                                self.clock.now() + timeout)
+            if reply is not None:
+                return reply
+            if self._framer.pending:  # a truncated frame is stuck in the buffer
+                self.framing_errors += 1
+                self._framer.clear()
+            if attempt == 1 and self.framing_errors > errors_before:
+                continue
+            break
+        what = f"no {message_name(reply_id)} within {timeout} s after {request.name}"
+        if self.framing_errors > errors_before:
+            raise FramingError(f"KDC101 at {self.address}: {what} (only invalid bytes came: "
+                               f"{self._framer.discarded} skipped so far)")
+        raise InstrumentTimeout(f"KDC101 at {self.address}: {what}")
+
+    def _req(self, msg_id: int, reply_id: int) -> Message:
+        return self._query(command(msg_id, CHANNEL), reply_id)
+
+    @staticmethod
+    def _data(msg: Message) -> bytes:
+        return msg.data or b""
+
+    # ---- safety -----------------------------------------------------------------------
+    @contextmanager
+    def _guard(self) -> Iterator[None]:
+        """On any failure while the stage may be moving, command a stop, then re-raise."""
+        try:
+            yield
+        except BaseException:
+            if self._maybe_moving:
+                self._emergency_stop()
+            raise
+
+    def _emergency_stop(self) -> None:
+        # If the link is gone there is nothing more to do from here.
+        with suppress(InstrumentError):
+            self._send(command(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE))
+
+    # ---- Stage: identity and set-up ---------------------------------------------------
+    def identify(self) -> StageIdentity:
+        info = pl.HwInfo.unpack(self._data(self._query(command(MsgId.HW_REQ_INFO),
+                                                       MsgId.HW_GET_INFO)))
+        if not info.model.startswith("KDC101"):
+            raise InstrumentError(f"{self.address}: expected a KDC101, found {info.model!r} "
+                                  f"(serial {info.serial_number})")
+        self.hw_info = info
+        return StageIdentity(info.model, info.serial_number,
+                             ".".join(str(n) for n in info.firmware), info.hw_version,
+                             info.n_channels)
+
+    def enable(self) -> None:
+        with self._guard():
+            self._send(command(MsgId.MOD_SET_CHANENABLESTATE, CHANNEL, pl.CHAN_ENABLED))
+            state = self._req(MsgId.MOD_REQ_CHANENABLESTATE, MsgId.MOD_GET_CHANENABLESTATE)
+            if state.param2 != pl.CHAN_ENABLED:
+                raise InstrumentError(f"KDC101 at {self.address}: channel did not enable")
+
+    def disable(self) -> None:
+        """De-energise the motor (stops any motion)."""
+        self._send(command(MsgId.MOD_SET_CHANENABLESTATE, CHANNEL, pl.CHAN_DISABLED))
+
+    def velocity_params(self) -> pl.VelParams:
+        return pl.VelParams.unpack(self._data(self._req(MsgId.MOT_REQ_VELPARAMS,
+                                                        MsgId.MOT_GET_VELPARAMS)))
+
+    def home_params(self) -> pl.HomeParams:
+        return pl.HomeParams.unpack(self._data(self._req(MsgId.MOT_REQ_HOMEPARAMS,
+                                                         MsgId.MOT_GET_HOMEPARAMS)))
+
+    def limit_switch_params(self) -> pl.LimSwitchParams:
+        return pl.LimSwitchParams.unpack(self._data(self._req(MsgId.MOT_REQ_LIMSWITCHPARAMS,
+                                                              MsgId.MOT_GET_LIMSWITCHPARAMS)))
+
+    def set_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
+        self.config.check_velocity(max_m_s, accel_m_s2)
+        c = self.config
+        wanted = pl.VelParams(0, c.apt_acceleration(accel_m_s2), c.apt_velocity(max_m_s))
+        with self._guard():
+            self._send(data_message(MsgId.MOT_SET_VELPARAMS, wanted.pack()))
+            got = self.velocity_params()
+            if got != wanted:
+                raise InstrumentError(f"KDC101 at {self.address}: velocity parameters not "
+                                      f"accepted (sent {wanted}, read back {got})")
+        self.max_velocity_m_s, self.acceleration_m_s2 = max_m_s, accel_m_s2
+
+    # ---- Stage: motion ----------------------------------------------------------------
+    def home(self, wait: bool = True, timeout: float | None = None) -> None:
+        with self._guard():
+            self._maybe_moving = True
+            self._send(command(MsgId.MOT_MOVE_HOME, CHANNEL))
+            self.status()  # surfaces an error reply to the command now
+            if wait:
+                self.wait_until_stopped(timeout)
+                if not self.status().homed:
+                    raise InstrumentError(f"KDC101 at {self.address}: homing did not complete")
+
+    def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        self.config.check_position(position_m)  # LimitError: nothing sent, nothing moved
+        target = self.config.counts_from_m(position_m)
+        with self._guard():
+            self._maybe_moving = True
+            self._send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(target)))
+            self.status()
+            if wait:
+                self.wait_until_stopped(timeout)
+                self._check_arrival(target)
+
+    def move_by(self, distance_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        with self._guard():
+            start = self._position_counts()
+            self.config.check_position(self.config.m_from_counts(start) + distance_m)
+            steps = self.config.counts_from_m(distance_m)
+            self._maybe_moving = True
+            self._send(data_message(MsgId.MOT_MOVE_RELATIVE, pl.pack_position(steps)))
+            self.status()
+            if wait:
+                self.wait_until_stopped(timeout)
+                self._check_arrival(start + steps)
+
+    def move_velocity(self, direction: int) -> None:
+        """Run at the set velocity until ``stop`` (the controller's soft limits still hold)."""
+        if direction not in (1, -1):
+            raise ValueError(f"direction must be +1 or -1, got {direction}")
+        param = pl.DIRECTION_FORWARD if direction > 0 else pl.DIRECTION_REVERSE
+        with self._guard():
+            self._maybe_moving = True
+            self._send(command(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param))
+            self.status()
+
+    def stop(self, immediate: bool = True) -> None:
+        mode = pl.STOP_IMMEDIATE if immediate else pl.STOP_PROFILED
+        with self._guard():
+            self._send(command(MsgId.MOT_MOVE_STOP, CHANNEL, mode))
+            if immediate:
+                self.wait_until_stopped(self.config.reply_timeout_s)
+
+    def _check_arrival(self, target: int) -> None:
+        counts = self._position_counts()
+        if abs(counts - target) > ARRIVAL_TOLERANCE_COUNTS:
+            st = self.status()
+            where = "a limit switch" if st.at_lower_limit or st.at_upper_limit else "a stop"
+            raise InstrumentError(
+                f"KDC101 at {self.address}: stopped at {counts} counts by {where}, "
+                f"target was {target} counts")
+
+    def wait_until_stopped(self, timeout: float | None = None) -> None:
+        limit = self.config.move_timeout_s if timeout is None else timeout
+        deadline = self.clock.now() + limit
+        with self._guard():
+            while True:
+                if not self.status().busy:
+                    self._maybe_moving = False
+                    return
+                if self.clock.now() >= deadline:
+                    raise InstrumentTimeout(f"KDC101 at {self.address}: still moving after "
+                                            f"{limit} s")
+                slice_end = min(self.clock.now() + self.config.poll_interval_s, deadline)
+                self._await(lambda m: m.msg_id in COMPLETIONS, slice_end)
+
+    # ---- Stage: readings --------------------------------------------------------------
+    def _position_counts(self) -> int:
+        _, counts = pl.unpack_position(self._data(self._req(MsgId.MOT_REQ_POSCOUNTER,
+                                                            MsgId.MOT_GET_POSCOUNTER)))
+        return counts
+
+    def position_counts(self) -> int:
+        """The encoder counter (device units), for calibration checks."""
+        with self._guard():
+            return self._position_counts()
+
+    def position(self) -> float:
+        return self.config.m_from_counts(self.position_counts())
+
+    def status(self) -> StageStatus:
+        with self._guard():
+            _, bits = pl.unpack_statusbits(self._data(self._req(MsgId.MOT_REQ_STATUSBITS,
+                                                                MsgId.MOT_GET_STATUSBITS)))
+            return pl.decode_status(bits)
+
+    def is_moving(self) -> bool:
+        return self.status().busy
+
+    def close(self) -> None:
+        try:
+            if self._status_updates:
+                self._send(command(MsgId.HW_STOP_UPDATEMSGS))
+        except InstrumentError:
+            pass
+        finally:
+            self._close_port()
+
+    def _close_port(self) -> None:
+        # pyserial's socket:// close skips socket.close() when shutdown() fails on a peer
+        # that already hung up; close it ourselves so the descriptor is not leaked.
+        sock = getattr(self._port, "_socket", None)
+        self._port.close()
+        if sock is not None:
+            sock.close()
+
+    def __enter__(self) -> KDC101:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

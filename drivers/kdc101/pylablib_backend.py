@@ -1,0 +1,182 @@
+"""The same ``Stage`` on pylablib's ``KinesisMotor``, for labs that already trust pylablib.
+
+Optional: needs the ``pylablib`` extra (pylablib-lightweight, plus numba, which pylablib's
+Thorlabs package imports). pylablib does the APT talking; this adapter converts units, checks
+software limits before anything is sent, waits on the injected clock, maps pylablib's errors to
+ours, and sends a stop on any fault while moving. Velocity moves use the direction table of
+``payloads`` (pylablib's own ``jog`` inverts it, see ADR 0004).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from typing import Any
+
+from drivers.kdc101 import payloads as pl
+from drivers.kdc101.apt import CHANNEL, MsgId
+from instrument.clock import Clock, RealClock
+from instrument.errors import (
+    DeviceErrorReply,
+    Disconnected,
+    InstrumentError,
+    InstrumentTimeout,
+)
+from instrument.stage import StageConfig, StageIdentity, StageStatus
+
+
+def load_kinesis() -> Any:
+    """pylablib's kinesis module, imported on first use; InstrumentError if not installed."""
+    try:
+        return importlib.import_module("pylablib.devices.Thorlabs.kinesis")
+    except ImportError as exc:
+        raise InstrumentError(
+            f"the pylablib backend needs the 'pylablib' extra (pylablib-lightweight and numba): "
+            f"{exc}") from exc
+
+
+def pylablib_conn(port: str) -> Any:
+    """pylablib's connection spec: pyserial URLs must be forced onto its serial backend."""
+    return ("serial", port) if "://" in port else port
+
+
+class PylablibKDC101:
+    """A KDC101 stage driven through ``pylablib.devices.Thorlabs.KinesisMotor`` (a Stage)."""
+
+    def __init__(self, port: str, config: StageConfig | None = None, clock: Clock | None = None,
+                 *, timeout_s: float | None = None):
+        self.config = config or StageConfig()
+        self.clock: Clock = clock or RealClock()
+        self.address = port
+        self._maybe_moving = False
+        kinesis = load_kinesis()
+        self._errors = (kinesis.ThorlabsError,)
+        self._timeout_cls = kinesis.ThorlabsTimeoutError
+        self._backend_cls = kinesis.ThorlabsBackendError
+        c = self.config
+        scale = (c.counts_per_mm * 1e3, c.velocity_factor * 1e3, c.accel_factor * 1e3)
+        with self._mapped():
+            self.motor = kinesis.KinesisMotor(pylablib_conn(port), scale=scale)
+            self.motor.instr.set_timeout(timeout_s or c.reply_timeout_s)
+        try:
+            self.identity = self.identify()
+            self.set_velocity(c.max_velocity_m_s, c.acceleration_m_s2)
+        except BaseException:
+            self.close()
+            raise
+
+    # ---- errors and safety ------------------------------------------------------------
+    @contextmanager
+    def _mapped(self) -> Iterator[None]:
+        """pylablib's exceptions -> ours; a stop first if the stage may be moving."""
+        try:
+            yield
+        except self._errors as exc:
+            if self._maybe_moving:
+                self._emergency_stop()
+            raise self._translate(exc) from exc
+        except BaseException:
+            if self._maybe_moving:
+                self._emergency_stop()
+            raise
+
+    def _translate(self, exc: Exception) -> InstrumentError:
+        text = f"KDC101 (pylablib) at {self.address}: {exc}"
+        if isinstance(exc, self._timeout_cls) or "less than expected" in str(exc):
+            return InstrumentTimeout(text)
+        if isinstance(exc, self._backend_cls):
+            return Disconnected(text)
+        if "got 0x0080" in str(exc) or "got 0x0081" in str(exc):
+            return DeviceErrorReply(text)
+        return InstrumentError(text)
+
+    def _emergency_stop(self) -> None:
+        with suppress(Exception):
+            self.motor.send_comm(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE)
+
+    # ---- Stage ------------------------------------------------------------------------
+    def identify(self) -> StageIdentity:
+        with self._mapped():
+            info = self.motor.get_device_info()
+        if not str(info.model_no).startswith("KDC101"):
+            raise InstrumentError(f"{self.address}: expected a KDC101, found {info.model_no!r}")
+        return StageIdentity(info.model_no, int(info.serial_no), info.fw_ver, int(info.hw_ver),
+                             int(info.nchannels))
+
+    def enable(self) -> None:
+        with self._mapped():
+            self.motor.send_comm(MsgId.MOD_SET_CHANENABLESTATE, CHANNEL, pl.CHAN_ENABLED)
+            state = self.motor.query(MsgId.MOD_REQ_CHANENABLESTATE, CHANNEL)
+        if state.param2 != pl.CHAN_ENABLED:
+            raise InstrumentError(f"KDC101 (pylablib) at {self.address}: channel did not enable")
+
+    def set_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
+        self.config.check_velocity(max_m_s, accel_m_s2)
+        with self._mapped():
+            self.motor.setup_velocity(acceleration=accel_m_s2, max_velocity=max_m_s)
+
+    def home(self, wait: bool = True, timeout: float | None = None) -> None:
+        with self._mapped():
+            self._maybe_moving = True
+            self.motor.home(sync=False, force=True)
+        if wait:
+            self.wait_until_stopped(timeout)
+            if not self.status().homed:
+                raise InstrumentError(f"KDC101 (pylablib) at {self.address}: homing failed")
+
+    def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        self.config.check_position(position_m)
+        with self._mapped():
+            self._maybe_moving = True
+            self.motor.move_to(position_m)
+        if wait:
+            self.wait_until_stopped(timeout)
+
+    def move_by(self, distance_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        self.config.check_position(self.position() + distance_m)
+        with self._mapped():
+            self._maybe_moving = True
+            self.motor.move_by(distance_m)
+        if wait:
+            self.wait_until_stopped(timeout)
+
+    def move_velocity(self, direction: int) -> None:
+        if direction not in (1, -1):
+            raise ValueError(f"direction must be +1 or -1, got {direction}")
+        param = pl.DIRECTION_FORWARD if direction > 0 else pl.DIRECTION_REVERSE
+        with self._mapped():
+            self._maybe_moving = True
+            self.motor.send_comm(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param)
+
+    def stop(self, immediate: bool = True) -> None:
+        with self._mapped():
+            self.motor.stop(immediate=immediate, sync=False)
+        if immediate:
+            self.wait_until_stopped(self.config.reply_timeout_s)
+
+    def position(self) -> float:
+        with self._mapped():
+            return float(self.motor.get_position())
+
+    def status(self) -> StageStatus:
+        with self._mapped():
+            return pl.decode_status(int(self.motor.get_status_n()))
+
+    def is_moving(self) -> bool:
+        return self.status().busy
+
+    def wait_until_stopped(self, timeout: float | None = None) -> None:
+        limit = self.config.move_timeout_s if timeout is None else timeout
+        deadline = self.clock.now() + limit
+        with self._mapped():
+            while self.status().busy:
+                if self.clock.now() >= deadline:
+                    raise InstrumentTimeout(
+                        f"KDC101 (pylablib) at {self.address}: still moving after {limit} s")
+                self.clock.sleep(self.config.poll_interval_s)
+            self._maybe_moving = False
+
+    def close(self) -> None:
+        with suppress(Exception):
+            self.motor.close()

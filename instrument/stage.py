@@ -1,0 +1,255 @@
+"""The linear stage contract: what protocols program against, whatever drives the plate.
+
+SI units throughout (metres, m/s, m/s^2, seconds). Device units (encoder counts, APT velocity
+units) exist only inside a driver. ``StageConfig`` is the ``[stage]`` table of a rig file,
+validated field by field so a bad value is reported with its file, field and allowed range.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+from instrument.errors import ConfigError
+from instrument.units import to_si
+
+
+@dataclass(frozen=True)
+class StageStatus:
+    """Decoded status of one stage axis; ``raw`` keeps the device's bit word for the record."""
+
+    raw: int
+    moving: bool
+    homing: bool
+    homed: bool
+    enabled: bool
+    motor_connected: bool
+    at_lower_limit: bool
+    at_upper_limit: bool
+    position_error: bool
+    error: bool
+
+    @property
+    def busy(self) -> bool:
+        """True while any motion (move, jog, velocity move or homing) is in progress."""
+        return self.moving or self.homing
+
+
+@dataclass(frozen=True)
+class StageIdentity:
+    """Who answered: what the data store records beside every run."""
+
+    model: str
+    serial_number: int
+    firmware: str
+    hardware_version: int
+    channels: int
+
+
+@runtime_checkable
+class Stage(Protocol):
+    """A single-axis linear stage, in SI units. Positions are those of the homed axis.
+
+    Every wait goes through the clock the stage was built with; every failure is a typed
+    ``instrument.errors`` error; a fault while moving commands a stop before it is raised.
+    """
+
+    def identify(self) -> StageIdentity:
+        """Ask the controller who it is."""
+        ...
+
+    def enable(self) -> None:
+        """Energise the motor (a no-op if already enabled)."""
+        ...
+
+    def home(self, wait: bool = True, timeout: float | None = None) -> None:
+        """Find the home switch and zero the position there."""
+        ...
+
+    def set_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
+        """Set the trapezoid used by later moves (checked against the configured limits)."""
+        ...
+
+    def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        """Absolute move; LimitError before anything moves if outside the software limits."""
+        ...
+
+    def move_by(self, distance_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        """Relative move; the end point is checked against the software limits first."""
+        ...
+
+    def move_velocity(self, direction: int) -> None:
+        """Move at the configured velocity, +1 towards larger positions, -1 towards smaller."""
+        ...
+
+    def stop(self, immediate: bool = True) -> None:
+        """Stop at once (``immediate``) or along the deceleration ramp (profiled)."""
+        ...
+
+    def position(self) -> float:
+        """Current position in metres (encoder counts / calibration)."""
+        ...
+
+    def status(self) -> StageStatus:
+        """Current status bits, decoded."""
+        ...
+
+    def is_moving(self) -> bool:
+        """True while a move or homing is in progress."""
+        ...
+
+    def wait_until_stopped(self, timeout: float | None = None) -> None:
+        """Block (on the clock) until motion ends; InstrumentTimeout (and a stop) if it doesn't."""
+        ...
+
+    def close(self) -> None:
+        """Release the transport (does not move the stage)."""
+        ...
+
+
+# Z825B actuator facts (instruments.md); the accel cap is UNVERIFIED, so generous.
+_Z825B_MAX_VELOCITY_M_S = 2.6e-3
+_ACCEL_CAP_M_S2 = 10e-3
+_ACTUATOR_TRAVEL_M = 25e-3
+
+
+@dataclass(frozen=True)
+class StageConfig:
+    """Calibration, safety limits and timing of the compression-rig stage (KDC101 + Z825B).
+
+    ``counts_per_mm`` defaults to the protocol document's 34554.96 (see ADR 0003 for the 34304
+    conflict); velocity and acceleration factors convert mm/s and mm/s^2 to APT units.
+    Software limits are positions of the homed axis; nothing outside them is ever commanded.
+    """
+
+    counts_per_mm: float = 34554.96
+    velocity_factor: float = 772981.3692
+    accel_factor: float = 263.8443072
+    min_position_m: float = 0.0
+    max_position_m: float = 12e-3
+    max_velocity_m_s: float = 2.3e-3
+    acceleration_m_s2: float = 4e-3
+    home_velocity_m_s: float = 1e-3
+    reply_timeout_s: float = 2.0
+    move_timeout_s: float = 60.0
+    poll_interval_s: float = 0.05
+
+    # TOML key -> (dataclass field, SI unit or "" for a pure number, lower, upper, open lower?)
+    _SPEC: ClassVar[dict[str, tuple[str, str, float, float, bool]]] = {
+        "counts_per_mm": ("counts_per_mm", "", 1e3, 1e6, True),
+        "velocity_factor": ("velocity_factor", "", 1e3, 1e9, True),
+        "accel_factor": ("accel_factor", "", 1e-3, 1e6, True),
+        "min_position": ("min_position_m", "m", 0.0, _ACTUATOR_TRAVEL_M, False),
+        "max_position": ("max_position_m", "m", 0.0, _ACTUATOR_TRAVEL_M, False),
+        "max_velocity": ("max_velocity_m_s", "m/s", 0.0, _Z825B_MAX_VELOCITY_M_S, True),
+        "acceleration": ("acceleration_m_s2", "m/s^2", 0.0, _ACCEL_CAP_M_S2, True),
+        "home_velocity": ("home_velocity_m_s", "m/s", 0.0, _Z825B_MAX_VELOCITY_M_S, True),
+        "reply_timeout": ("reply_timeout_s", "s", 0.0, 60.0, True),
+        "move_timeout": ("move_timeout_s", "s", 0.0, 3600.0, True),
+        "poll_interval": ("poll_interval_s", "s", 0.0, 1.0, True),
+    }
+
+    def __post_init__(self) -> None:
+        for key, (name, unit, lo, hi, open_lo) in self._SPEC.items():
+            _check_range(key, getattr(self, name), unit, lo, hi, open_lo, None)
+        if not self.min_position_m < self.max_position_m:
+            raise ConfigError(
+                "min_position",
+                self.min_position_m,
+                f"must be < max_position ({self.max_position_m} m)",
+            )
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], source: str) -> StageConfig:
+        """Build from a ``[stage]`` table: numbers are SI, strings may carry units ("12 mm").
+
+        Keys: counts_per_mm, velocity_factor, accel_factor, min_position, max_position,
+        max_velocity, acceleration, home_velocity, reply_timeout, move_timeout, poll_interval.
+        Unknown keys and out-of-range values raise ConfigError naming ``source``.
+        """
+        values: dict[str, float] = {}
+        for key, raw in mapping.items():
+            if key not in cls._SPEC:
+                allowed = ", ".join(sorted(cls._SPEC))
+                raise ConfigError(f"stage.{key}", raw, f"unknown field; allowed: {allowed}", source)
+            name, unit, lo, hi, open_lo = cls._SPEC[key]
+            value = to_si(raw, unit or "dimensionless", f"stage.{key}", source)
+            _check_range(key, value, unit, lo, hi, open_lo, source)
+            values[name] = value
+        lo_pos = values.get("min_position_m", cls.min_position_m)
+        hi_pos = values.get("max_position_m", cls.max_position_m)
+        if not lo_pos < hi_pos:
+            raise ConfigError("stage.min_position", lo_pos, f"must be < max_position ({hi_pos} m)",
+                              source)
+        return cls(**values)
+
+    def to_mapping(self) -> dict[str, float]:
+        """The inverse of ``from_mapping`` (SI numbers), for storing beside the data."""
+        by_field = {name: key for key, (name, *_rest) in self._SPEC.items()}
+        return {by_field[f.name]: getattr(self, f.name) for f in fields(self)}
+
+    # Conversions used by drivers (mm only at the wire).
+    def counts_from_m(self, position_m: float) -> int:
+        """Encoder counts for a position or distance in metres (rounded)."""
+        return round(position_m * 1e3 * self.counts_per_mm)
+
+    def m_from_counts(self, counts: int) -> float:
+        """Metres for a number of encoder counts."""
+        return counts / self.counts_per_mm * 1e-3
+
+    def apt_velocity(self, velocity_m_s: float) -> int:
+        """APT velocity units for m/s."""
+        return round(velocity_m_s * 1e3 * self.velocity_factor)
+
+    def apt_acceleration(self, accel_m_s2: float) -> int:
+        """APT acceleration units for m/s^2."""
+        return round(accel_m_s2 * 1e3 * self.accel_factor)
+
+    def velocity_from_apt(self, units: int) -> float:
+        """m/s for APT velocity units."""
+        return units / self.velocity_factor * 1e-3
+
+    def accel_from_apt(self, units: int) -> float:
+        """m/s^2 for APT acceleration units."""
+        return units / self.accel_factor * 1e-3
+
+    def check_position(self, position_m: float) -> None:
+        """Raise LimitError if ``position_m`` lies outside the software travel limits."""
+        from instrument.errors import LimitError
+
+        if not math.isfinite(position_m) or not (
+            self.min_position_m <= position_m <= self.max_position_m
+        ):
+            raise LimitError(
+                f"target {position_m * 1e3:.4f} mm is outside the software travel limits "
+                f"[{self.min_position_m * 1e3:.4f}, {self.max_position_m * 1e3:.4f}] mm; "
+                "nothing moved"
+            )
+
+    def check_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
+        """Raise LimitError if a velocity or acceleration is outside the actuator's range."""
+        from instrument.errors import LimitError
+
+        if not 0 < max_m_s <= _Z825B_MAX_VELOCITY_M_S:
+            raise LimitError(
+                f"velocity {max_m_s * 1e3:.4f} mm/s outside (0, "
+                f"{_Z825B_MAX_VELOCITY_M_S * 1e3:.1f}] mm/s"
+            )
+        if not 0 < accel_m_s2 <= _ACCEL_CAP_M_S2:
+            raise LimitError(
+                f"acceleration {accel_m_s2 * 1e3:.4f} mm/s^2 outside (0, "
+                f"{_ACCEL_CAP_M_S2 * 1e3:.1f}] mm/s^2"
+            )
+
+
+def _check_range(
+    key: str, value: float, unit: str, lo: float, hi: float, open_lo: bool, source: str | None
+) -> None:
+    ok = math.isfinite(value) and (value > lo if open_lo else value >= lo) and value <= hi
+    if not ok:
+        bracket = "(" if open_lo else "["
+        unit_txt = f" {unit}" if unit else ""
+        raise ConfigError(f"stage.{key}", value, f"allowed range {bracket}{lo}, {hi}]{unit_txt}",
+                          source)

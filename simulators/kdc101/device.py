@@ -1,0 +1,551 @@
+"""A simulated KDC101 K-Cube driving a Z825B actuator, answering APT bytes.
+
+The state is computed lazily from ``clock.now()``: a command replaces the future of the
+trajectory, and anything the controller says on its own (move completed, homed, status
+updates every 100 ms) is produced, in time order, when a transport next asks for output. No
+thread is needed in virtual time. Transports: ``protocol_kdc101sim`` (in-process pyserial URL)
+and ``serve`` (TCP / pty server).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.kdc101 import payloads as pl
+from drivers.kdc101.apt import (
+    CHANNEL,
+    CONTROLLER,
+    FORMS,
+    HOST,
+    AptFramer,
+    AptFramingError,
+    Message,
+    MsgId,
+    command,
+    data_message,
+    encode,
+)
+from instrument.clock import Clock
+from instrument.errors import ConfigError
+from simulators.kdc101.kinematics import (
+    Phase,
+    Trajectory,
+    clip_to_travel,
+    plan_move,
+    plan_stop,
+    plan_velocity,
+)
+
+T_UNIT = 2048 / 6e6  # KDC101 velocity/acceleration time unit (s)
+UPDATE_PERIOD_S = 0.1
+MAX_UNACKED_UPDATES = 50
+
+# Error codes of our HW_RICHRESPONSE replies (the real codes are not documented publicly).
+ERR_UNKNOWN_MESSAGE = 1
+ERR_BAD_CHANNEL = 2
+ERR_BAD_PARAMETER = 3
+ERR_DISABLED = 4
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """What the simulated hardware is: its true encoder scale, travel, power-on defaults."""
+
+    serial_number: int = 27000001
+    counts_per_mm: float = 34554.96  # the actuator's true scale (may differ from the rig file)
+    travel_m: float = 25e-3
+    start_position_m: float = 5e-3  # extension from the home switch at power-on
+    home_offset_m: float = 0.1e-3  # home position beyond the switch (UNVERIFIED)
+    max_velocity_m_s: float = 2.0e-3  # power-on velocity parameters (UNVERIFIED)
+    acceleration_m_s2: float = 1.5e-3
+    home_velocity_m_s: float = 1.0e-3
+    velocity_cap_m_s: float = 2.6e-3  # requests above are refused with an error reply
+    accel_cap_m_s2: float = 10e-3
+    firmware: tuple[int, int, int] = (3, 0, 10)
+    stage_id: int = 9  # Z825 in the KDC101 stage table
+    rich_errors: bool = True  # HW_RICHRESPONSE (True) or bare HW_RESPONSE
+
+    def __post_init__(self) -> None:
+        if not 27000000 <= self.serial_number <= 27999999:
+            raise ConfigError("serial_number", self.serial_number, "a KDC101 serial is 27xxxxxx")
+        for name in ("counts_per_mm", "travel_m", "max_velocity_m_s", "acceleration_m_s2",
+                     "home_velocity_m_s", "velocity_cap_m_s", "accel_cap_m_s2"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(name, getattr(self, name), "must be > 0")
+        if not 0 <= self.start_position_m <= self.travel_m:
+            raise ConfigError("start_position_m", self.start_position_m,
+                              f"must lie in [0, {self.travel_m}] m")
+        if not 0 <= self.home_offset_m < self.travel_m:
+            raise ConfigError("home_offset_m", self.home_offset_m,
+                              f"must lie in [0, {self.travel_m}) m")
+
+    @property
+    def counts_per_m(self) -> float:
+        return self.counts_per_mm * 1e3
+
+
+class KDC101Simulator:
+    """The controller and actuator. Transports call ``receive``, ``read`` and friends.
+
+    Positions inside are metres of extension from the home limit switch (``position_at``);
+    the encoder counter is zeroed at power-on and at the end of homing.
+    """
+
+    def __init__(self, clock: Clock, config: SimConfig | None = None):
+        self.clock = clock
+        self.config = config or SimConfig()
+        c = self.config
+        now = clock.now()
+        self._lock = threading.RLock()
+        self._framer = AptFramer()
+        self._out = bytearray()
+        self.kinematics = Trajectory(c.start_position_m, now)
+        self._origin_m = c.start_position_m
+        self._origins = [(now, c.start_position_m)]  # (from time, counter origin) history
+        self.enabled = True
+        self.homed = False
+        self._v_max = c.max_velocity_m_s
+        self._accel = c.acceleration_m_s2
+        self._home_params = pl.HomeParams(2, 1, self._apt_velocity(c.home_velocity_m_s),
+                                          round(c.home_offset_m * c.counts_per_m))
+        self._lim_params = pl.LimSwitchParams(2, 2, 0, 0, 1)
+        # The motion in progress: its kind, end time, direction and the event at its end.
+        self._motion: str | None = None
+        self._motion_end = math.inf
+        self._motion_dir = 0
+        self._end_event: int | None = None
+        self._homing_origin: float | None = None
+        # Status update stream.
+        self._updates = False
+        self._next_update = math.inf
+        self.unacked_updates = 0
+        # Fault injection and bookkeeping.
+        self.muted = False
+        self.connected = True
+        self.received: list[Message] = []
+        self.garbage_received = 0
+
+    # ---- unit conversions -------------------------------------------------------------
+    def _apt_velocity(self, v_m_s: float) -> int:
+        return round(v_m_s * self.config.counts_per_m * T_UNIT * 65536)
+
+    def _apt_accel(self, a_m_s2: float) -> int:
+        return round(a_m_s2 * self.config.counts_per_m * T_UNIT * T_UNIT * 65536)
+
+    def _velocity_from_apt(self, units: int) -> float:
+        return units / (T_UNIT * 65536) / self.config.counts_per_m
+
+    def _accel_from_apt(self, units: int) -> float:
+        return units / (T_UNIT * T_UNIT * 65536) / self.config.counts_per_m
+
+    # ---- the observable state (pure functions of time) --------------------------------
+    def position_at(self, t: float) -> float:
+        """Actuator extension (m) from the home switch at time ``t``: the plate's position."""
+        with self._lock:
+            return self.kinematics.position_at(t)
+
+    def velocity_at(self, t: float) -> float:
+        """Actuator velocity (m/s) at time ``t``."""
+        with self._lock:
+            return self.kinematics.velocity_at(t)
+
+    def axis_position_at(self, t: float) -> float:
+        """The stage position (m) at ``t`` in the axis the driver reports: extension minus
+        the encoder counter's origin at that time (unquantized; changes frame when homing
+        completes). Pure for any ``t`` up to now."""
+        with self._lock:
+            self._advance(self.clock.now())
+            return self.kinematics.position_at(t) - self._origin_at(t)
+
+    def axis_positions_at(self, ts: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``axis_position_at`` for an array of times (an acquisition block in one call)."""
+        with self._lock:
+            self._advance(self.clock.now())
+            ts = np.asarray(ts, dtype=float)
+            starts = np.array([t for t, _ in self._origins])
+            values = np.array([o for _, o in self._origins])
+            idx = np.clip(np.searchsorted(starts, ts, side="right") - 1, 0, None)
+            out: NDArray[np.float64] = self.kinematics.positions_at(ts) - values[idx]
+            return out
+
+    def _origin_at(self, t: float) -> float:
+        i = bisect.bisect_right([s for s, _ in self._origins], t) - 1
+        return self._origins[max(i, 0)][1]
+
+    def _set_origin(self, t: float, origin: float) -> None:
+        self._origin_m = origin
+        self._origins = [o for o in self._origins if o[0] < t] + [(t, origin)]
+
+    @property
+    def counter_origin_m(self) -> float:
+        """Extension at which the encoder counter reads 0 (moves when homing completes)."""
+        return self._origin_m
+
+    def counts_at(self, t: float) -> int:
+        """The encoder counter at ``t``: quantized position relative to the counter origin."""
+        return round((self.kinematics.position_at(t) - self._origin_m) * self.config.counts_per_m)
+
+    def status_bits_at(self, t: float) -> int:
+        x = self.kinematics.position_at(t)
+        v = self.kinematics.velocity_at(t)
+        bits = pl.MOTOR_CONNECTED
+        if self.enabled:
+            bits |= pl.ENABLED
+        if self.homed:
+            bits |= pl.HOMED
+        if self._motion is not None and t < self._motion_end:
+            direction = (v > 0) - (v < 0) or self._motion_dir
+            bits |= pl.MOVING_FORWARD if direction > 0 else pl.MOVING_REVERSE
+            if self._motion == "home":
+                bits |= pl.HOMING
+        soft = self.soft_limits_m()
+        if soft is not None and x <= soft[0] + 1e-9:
+            bits |= pl.SOFT_LIMIT_REVERSE
+        if soft is not None and x >= soft[1] - 1e-9:
+            bits |= pl.SOFT_LIMIT_FORWARD
+        if x <= 1e-9:
+            bits |= pl.LIMIT_REVERSE
+        if x >= self.config.travel_m - 1e-9:
+            bits |= pl.LIMIT_FORWARD
+        return bits
+
+    def _dc_status(self, t: float) -> pl.DcStatus:
+        v_units = self._apt_velocity(abs(self.kinematics.velocity_at(t))) >> 16
+        return pl.DcStatus(self.counts_at(t), min(v_units, 0x7FFF), 0, self.status_bits_at(t))
+
+    # ---- time: spontaneous messages ---------------------------------------------------
+    def next_event_time(self) -> float:
+        """When the controller will next say something by itself (inf: never)."""
+        with self._lock:
+            t_upd = self._next_update if self._updates else math.inf
+            t_end = self._motion_end if self._motion is not None else math.inf
+            return min(t_upd, t_end)
+
+    def _advance(self, now: float) -> None:
+        """Produce, in time order, everything due up to ``now``."""
+        while True:
+            t_upd = self._next_update if self._updates else math.inf
+            t_end = self._motion_end if self._motion is not None else math.inf
+            t = min(t_upd, t_end)
+            if t > now:
+                return
+            if t_end <= t_upd:
+                self._finish_motion(t_end)
+            else:
+                self._send_update(t_upd)
+
+    def _finish_motion(self, t: float) -> None:
+        if self._motion == "home" and self._homing_origin is not None:
+            self.homed = True
+            self._set_origin(t, self._homing_origin)
+            self._homing_origin = None
+        event = self._end_event
+        self._motion, self._motion_end, self._end_event = None, math.inf, None
+        if event == MsgId.MOT_MOVE_HOMED:
+            self._emit(command(event, CHANNEL, 0, to_host=True))
+        elif event is not None:
+            self._emit(data_message(event, self._dc_status(t).pack(), to_host=True))
+
+    def _send_update(self, t: float) -> None:
+        self._emit(data_message(MsgId.MOT_GET_DCSTATUSUPDATE, self._dc_status(t).pack(),
+                                to_host=True))
+        self.unacked_updates += 1
+        self._next_update = t + UPDATE_PERIOD_S
+        if self.unacked_updates >= MAX_UNACKED_UPDATES:
+            self._updates = False  # the host stopped acknowledging: the stream stops
+
+    def _emit(self, msg: Message) -> None:
+        if not self.muted:
+            self._out += encode(msg)
+
+    # ---- the transport side -----------------------------------------------------------
+    def receive(self, data: bytes) -> None:
+        """Bytes from the host, arriving now."""
+        with self._lock:
+            now = self.clock.now()
+            self._advance(now)
+            self._framer.feed(data)
+            while True:
+                try:
+                    msg = self._framer.next_message()
+                except AptFramingError:
+                    self.garbage_received += 1
+                    continue
+                if msg is None:
+                    return
+                self.received.append(msg)
+                self._handle(msg, now)
+
+    def read(self, max_bytes: int | None = None) -> bytes:
+        """Bytes the controller has sent up to now (at most ``max_bytes``)."""
+        with self._lock:
+            self._advance(self.clock.now())
+            n = len(self._out) if max_bytes is None else min(max_bytes, len(self._out))
+            out = bytes(self._out[:n])
+            del self._out[:n]
+            return out
+
+    def out_waiting(self) -> int:
+        """How many bytes are ready to read now."""
+        with self._lock:
+            self._advance(self.clock.now())
+            return len(self._out)
+
+    def discard_output(self) -> None:
+        """Forget unread output (the host purged its receive buffer)."""
+        with self._lock:
+            self._advance(self.clock.now())
+            self._out.clear()
+
+    # ---- fault injection --------------------------------------------------------------
+    def inject(self, data: bytes) -> None:
+        """Put raw bytes on the wire to the host now (garbage, truncated frames...)."""
+        with self._lock:
+            self._advance(self.clock.now())
+            self._out += data
+
+    def mute(self, muted: bool = True) -> None:
+        """Stop (or resume) sending anything; commands are still obeyed."""
+        with self._lock:
+            self._advance(self.clock.now())
+            self.muted = muted
+
+    def disconnect(self) -> None:
+        """Drop the link: transports raise on the next read or write."""
+        with self._lock:
+            self.connected = False
+
+    def reconnect(self) -> None:
+        with self._lock:
+            self.connected = True
+
+    # ---- message handling -------------------------------------------------------------
+    def _error(self, msg: Message, code: int, text: str) -> None:
+        if self.config.rich_errors:
+            rich = pl.RichResponse(msg.msg_id, code, text)
+            self._emit(data_message(MsgId.HW_RICHRESPONSE, rich.pack(), to_host=True))
+        else:
+            self._emit(command(MsgId.HW_RESPONSE, 0, 0, to_host=True))
+
+    def _reply(self, msg_id: int, data: bytes) -> None:
+        self._emit(data_message(msg_id, data, to_host=True))
+
+    def _handle(self, msg: Message, now: float) -> None:
+        if msg.dest != CONTROLLER or msg.source != HOST:
+            return
+        handler = _HANDLERS.get(msg.msg_id)
+        if handler is None:
+            self._error(msg, ERR_UNKNOWN_MESSAGE, f"unknown message id 0x{msg.msg_id:04X}")
+            return
+        form = FORMS[msg.msg_id]
+        channel = msg.data[0] | msg.data[1] << 8 if msg.data and form.has_channel else None
+        if msg.data is None and msg.msg_id in _CHANNEL_IN_PARAM1:
+            channel = msg.param1
+        if channel is not None and channel != CHANNEL:
+            self._error(msg, ERR_BAD_CHANNEL, f"no channel {channel} (KDC101 has 1)")
+            return
+        handler(self, msg, now)
+
+    def _on_info(self, msg: Message, now: float) -> None:
+        c = self.config
+        info = pl.HwInfo(c.serial_number, "KDC101", 16, c.firmware, "APT DC Motor Controller",
+                         1, 0, 1, c.stage_id)
+        self._reply(MsgId.HW_GET_INFO, info.pack())
+
+    def _on_start_updates(self, msg: Message, now: float) -> None:
+        self._updates = True
+        self.unacked_updates = 0
+        self._next_update = now + UPDATE_PERIOD_S
+
+    def _on_stop_updates(self, msg: Message, now: float) -> None:
+        self._updates = False
+
+    def _on_ack(self, msg: Message, now: float) -> None:
+        self.unacked_updates = 0
+
+    def _on_nothing(self, msg: Message, now: float) -> None:
+        return
+
+    def _on_set_enable(self, msg: Message, now: float) -> None:
+        if msg.param2 not in (pl.CHAN_ENABLED, pl.CHAN_DISABLED):
+            self._error(msg, ERR_BAD_PARAMETER, f"enable state {msg.param2} (1 or 2)")
+            return
+        self.enabled = msg.param2 == pl.CHAN_ENABLED
+        if not self.enabled and self._motion is not None:
+            self._start(now, plan_stop(now, self._x(now), 0.0, 1.0, immediate=True), "stop",
+                        0, MsgId.MOT_MOVE_STOPPED)
+
+    def _on_req_enable(self, msg: Message, now: float) -> None:
+        state = pl.CHAN_ENABLED if self.enabled else pl.CHAN_DISABLED
+        self._emit(command(MsgId.MOD_GET_CHANENABLESTATE, CHANNEL, state, to_host=True))
+
+    def _on_set_poscounter(self, msg: Message, now: float) -> None:
+        _, counts = pl.unpack_position(msg.data or b"")
+        self._set_origin(now, self._x(now) - counts / self.config.counts_per_m)
+
+    def _on_req_poscounter(self, msg: Message, now: float) -> None:
+        self._reply(MsgId.MOT_GET_POSCOUNTER, pl.pack_position(self.counts_at(now)))
+
+    def _on_set_velparams(self, msg: Message, now: float) -> None:
+        p = pl.VelParams.unpack(msg.data or b"")
+        v, a = self._velocity_from_apt(p.max_velocity), self._accel_from_apt(p.acceleration)
+        c, tol = self.config, 1 + 1e-6
+        if not (0 < v <= c.velocity_cap_m_s * tol and 0 < a <= c.accel_cap_m_s2 * tol):
+            self._error(msg, ERR_BAD_PARAMETER,
+                        f"velocity {v * 1e3:.3f} mm/s or accel {a * 1e3:.3f} mm/s2 out of range")
+            return
+        self._v_max, self._accel = v, a
+
+    def _on_req_velparams(self, msg: Message, now: float) -> None:
+        p = pl.VelParams(0, self._apt_accel(self._accel), self._apt_velocity(self._v_max))
+        self._reply(MsgId.MOT_GET_VELPARAMS, p.pack())
+
+    def _on_set_homeparams(self, msg: Message, now: float) -> None:
+        p = pl.HomeParams.unpack(msg.data or b"")
+        if p.velocity <= 0 or self._velocity_from_apt(p.velocity) > self.config.velocity_cap_m_s:
+            self._error(msg, ERR_BAD_PARAMETER, "home velocity out of range")
+            return
+        self._home_params = p
+
+    def _on_req_homeparams(self, msg: Message, now: float) -> None:
+        self._reply(MsgId.MOT_GET_HOMEPARAMS, self._home_params.pack())
+
+    def _on_set_limswitch(self, msg: Message, now: float) -> None:
+        self._lim_params = pl.LimSwitchParams.unpack(msg.data or b"")
+
+    def _on_req_limswitch(self, msg: Message, now: float) -> None:
+        self._reply(MsgId.MOT_GET_LIMSWITCHPARAMS, self._lim_params.pack())
+
+    def _on_req_statusbits(self, msg: Message, now: float) -> None:
+        self._reply(MsgId.MOT_GET_STATUSBITS, pl.pack_statusbits(self.status_bits_at(now)))
+
+    def _on_req_dcstatus(self, msg: Message, now: float) -> None:
+        self._reply(MsgId.MOT_GET_DCSTATUSUPDATE, self._dc_status(now).pack())
+
+    # ---- motion -----------------------------------------------------------------------
+    def _x(self, t: float) -> float:
+        return self.kinematics.position_at(t)
+
+    def _require_enabled(self, msg: Message) -> bool:
+        if not self.enabled:
+            self._error(msg, ERR_DISABLED, "channel disabled: enable it before moving")
+        return self.enabled
+
+    def soft_limits_m(self) -> tuple[float, float] | None:
+        """The controller's software limits as extensions, when active (homed, mode 2/3)."""
+        p = self._lim_params
+        if not self.homed or p.mode not in (2, 3) or p.ccw_soft >= p.cw_soft:
+            return None
+        cpm = self.config.counts_per_m
+        return self._origin_m + p.ccw_soft / cpm, self._origin_m + p.cw_soft / cpm
+
+    def _start(self, now: float, phases: list[Phase], kind: str, direction: int,
+               end_event: int | None) -> None:
+        lo, hi = 0.0, self.config.travel_m
+        soft = self.soft_limits_m() if kind != "home" else None
+        if soft is not None:
+            lo, hi = max(lo, soft[0]), min(hi, soft[1])
+        phases, t_hit = clip_to_travel(phases, lo, hi)
+        self.kinematics.replace_from(now, phases)
+        end = self.kinematics.end_time
+        if kind == "velocity" and t_hit is None:
+            end = math.inf  # runs until stopped
+        if t_hit is not None:
+            end_event = MsgId.MOT_MOVE_STOPPED  # stopped by a limit switch
+            if kind == "home":
+                end_event = None
+        self._motion, self._motion_end = kind, end
+        self._motion_dir, self._end_event = direction, end_event
+
+    def _move_to_m(self, now: float, target: float) -> None:
+        x, v = self._x(now), self.kinematics.velocity_at(now)
+        phases = plan_move(now, x, v, target, self._v_max, self._accel)
+        direction = (target > x) - (target < x)
+        self._start(now, phases, "move", direction, MsgId.MOT_MOVE_COMPLETED)
+
+    def _on_move_absolute(self, msg: Message, now: float) -> None:
+        if self._require_enabled(msg):
+            _, counts = pl.unpack_position(msg.data or b"")
+            self._move_to_m(now, self._origin_m + counts / self.config.counts_per_m)
+
+    def _on_move_relative(self, msg: Message, now: float) -> None:
+        if self._require_enabled(msg):
+            _, counts = pl.unpack_position(msg.data or b"")
+            # Relative to the current target if moving, as the controller does.
+            base = self._x(max(now, self.kinematics.end_time)) if self._motion == "move" \
+                else self._x(now)
+            self._move_to_m(now, base + counts / self.config.counts_per_m)
+
+    def _on_move_velocity(self, msg: Message, now: float) -> None:
+        if msg.param2 not in (pl.DIRECTION_FORWARD, pl.DIRECTION_REVERSE):
+            self._error(msg, ERR_BAD_PARAMETER, f"direction {msg.param2} (1 or 2)")
+            return
+        if self._require_enabled(msg):
+            direction = 1 if msg.param2 == pl.DIRECTION_FORWARD else -1
+            x, v = self._x(now), self.kinematics.velocity_at(now)
+            phases = plan_velocity(now, x, v, direction, self._v_max, self._accel)
+            self._start(now, phases, "velocity", direction, None)
+
+    def _on_move_stop(self, msg: Message, now: float) -> None:
+        if msg.param2 not in (pl.STOP_IMMEDIATE, pl.STOP_PROFILED):
+            self._error(msg, ERR_BAD_PARAMETER, f"stop mode {msg.param2} (1 or 2)")
+            return
+        x, v = self._x(now), self.kinematics.velocity_at(now)
+        phases = plan_stop(now, x, v, self._accel, immediate=msg.param2 == pl.STOP_IMMEDIATE)
+        self._homing_origin = None
+        self._start(now, phases, "stop", (v > 0) - (v < 0), MsgId.MOT_MOVE_STOPPED)
+
+    def _on_move_home(self, msg: Message, now: float) -> None:
+        if not self._require_enabled(msg):
+            return
+        c = self.config
+        v_home = self._velocity_from_apt(self._home_params.velocity)
+        offset = self._home_params.offset / c.counts_per_m
+        x, v = self._x(now), self.kinematics.velocity_at(now)
+        to_switch = plan_move(now, x, v, 0.0, v_home, self._accel)
+        rest = to_switch[-1]
+        back_out = plan_move(rest.t0, 0.0, 0.0, offset, v_home, self._accel)
+        self._homing_origin = offset
+        self._start(now, to_switch[:-1] + back_out, "home", -1, MsgId.MOT_MOVE_HOMED)
+
+
+_HANDLERS: dict[int, Callable[[KDC101Simulator, Message, float], None]] = {
+    MsgId.HW_REQ_INFO: KDC101Simulator._on_info,
+    MsgId.HW_START_UPDATEMSGS: KDC101Simulator._on_start_updates,
+    MsgId.HW_STOP_UPDATEMSGS: KDC101Simulator._on_stop_updates,
+    MsgId.HW_NO_FLASH_PROGRAMMING: KDC101Simulator._on_nothing,
+    MsgId.MOD_IDENTIFY: KDC101Simulator._on_nothing,
+    MsgId.MOD_SET_CHANENABLESTATE: KDC101Simulator._on_set_enable,
+    MsgId.MOD_REQ_CHANENABLESTATE: KDC101Simulator._on_req_enable,
+    MsgId.MOT_SET_POSCOUNTER: KDC101Simulator._on_set_poscounter,
+    MsgId.MOT_REQ_POSCOUNTER: KDC101Simulator._on_req_poscounter,
+    MsgId.MOT_SET_VELPARAMS: KDC101Simulator._on_set_velparams,
+    MsgId.MOT_REQ_VELPARAMS: KDC101Simulator._on_req_velparams,
+    MsgId.MOT_SET_HOMEPARAMS: KDC101Simulator._on_set_homeparams,
+    MsgId.MOT_REQ_HOMEPARAMS: KDC101Simulator._on_req_homeparams,
+    MsgId.MOT_SET_LIMSWITCHPARAMS: KDC101Simulator._on_set_limswitch,
+    MsgId.MOT_REQ_LIMSWITCHPARAMS: KDC101Simulator._on_req_limswitch,
+    MsgId.MOT_REQ_STATUSBITS: KDC101Simulator._on_req_statusbits,
+    MsgId.MOT_REQ_DCSTATUSUPDATE: KDC101Simulator._on_req_dcstatus,
+    MsgId.MOT_ACK_DCSTATUSUPDATE: KDC101Simulator._on_ack,
+    MsgId.MOT_MOVE_ABSOLUTE: KDC101Simulator._on_move_absolute,
+    MsgId.MOT_MOVE_RELATIVE: KDC101Simulator._on_move_relative,
+    MsgId.MOT_MOVE_VELOCITY: KDC101Simulator._on_move_velocity,
+    MsgId.MOT_MOVE_STOP: KDC101Simulator._on_move_stop,
+    MsgId.MOT_MOVE_HOME: KDC101Simulator._on_move_home,
+}
+
+# Header-only requests whose param1 is the channel.
+_CHANNEL_IN_PARAM1 = {
+    MsgId.MOD_SET_CHANENABLESTATE, MsgId.MOD_REQ_CHANENABLESTATE, MsgId.MOT_REQ_POSCOUNTER,
+    MsgId.MOT_REQ_VELPARAMS, MsgId.MOT_REQ_HOMEPARAMS, MsgId.MOT_REQ_LIMSWITCHPARAMS,
+    MsgId.MOT_REQ_STATUSBITS, MsgId.MOT_REQ_DCSTATUSUPDATE, MsgId.MOT_MOVE_HOME,
+    MsgId.MOT_MOVE_VELOCITY, MsgId.MOT_MOVE_STOP,
+}

@@ -1,0 +1,61 @@
+"""StageConfig: the [stage] table of a rig file, validated field by field."""
+
+from __future__ import annotations
+
+import pytest
+
+from instrument.errors import ConfigError, LimitError
+from instrument.stage import StageConfig
+
+
+def test_defaults_are_the_protocol_documents_factors() -> None:
+    c = StageConfig()
+    assert (c.counts_per_mm, c.velocity_factor, c.accel_factor) == (34554.96, 772981.3692,
+                                                                    263.8443072)
+    assert c.counts_from_m(1e-3) == 34555
+    assert c.apt_velocity(2.3e-3) == round(2.3 * 772981.3692)
+    assert c.m_from_counts(34555) == pytest.approx(1e-3, rel=2e-5)
+
+
+def test_from_mapping_accepts_units_and_si_numbers() -> None:
+    c = StageConfig.from_mapping(
+        {"counts_per_mm": 34304, "max_position": "11.5 mm", "max_velocity": "1.2 mm/s",
+         "acceleration": 0.002, "move_timeout": "2 min"}, "rig.toml")
+    assert c.counts_per_mm == 34304
+    assert c.max_position_m == pytest.approx(11.5e-3)
+    assert c.max_velocity_m_s == pytest.approx(1.2e-3)
+    assert c.acceleration_m_s2 == 0.002
+    assert c.move_timeout_s == pytest.approx(120)
+    assert StageConfig.from_mapping(c.to_mapping(), "round trip") == c
+
+
+@pytest.mark.parametrize(
+    ("table", "field", "says"),
+    [
+        ({"max_velocity": "5 mm/s"}, "stage.max_velocity", "allowed range (0.0, 0.0026]"),
+        ({"max_position": "30 mm"}, "stage.max_position", "allowed range [0.0, 0.025]"),
+        ({"counts_per_mm": 0}, "stage.counts_per_mm", "allowed range"),
+        ({"min_position": "5 mm", "max_position": "4 mm"}, "stage.min_position", "< max"),
+        ({"max_velocity": "2 mm"}, "stage.max_velocity", "dimension"),
+        ({"speed": 1}, "stage.speed", "unknown field"),
+        ({"poll_interval": True}, "stage.poll_interval", "expected a number"),
+    ],
+)
+def test_bad_values_name_file_field_and_range(table: dict[str, object], field: str, says: str
+                                              ) -> None:
+    with pytest.raises(ConfigError) as info:
+        StageConfig.from_mapping(table, "rigs/compression.toml")
+    assert info.value.field == field
+    assert info.value.source == "rigs/compression.toml"
+    assert says in str(info.value)
+
+
+def test_limit_checks() -> None:
+    c = StageConfig(min_position_m=1e-3, max_position_m=10e-3)
+    c.check_position(1e-3)
+    c.check_position(10e-3)
+    for bad in (0.999e-3, 10.001e-3, float("nan")):
+        with pytest.raises(LimitError, match="nothing moved"):
+            c.check_position(bad)
+    with pytest.raises(LimitError):
+        c.check_velocity(0.0, 1e-3)

@@ -1,0 +1,305 @@
+"""The simulated KDC101 + Z825B on its own: kinematics as a pure function of time, encoder
+quantization, limits, status updates and the keep-alive rule, info and error replies, spoken
+as raw APT bytes over the in-process pyserial URL and through ``gelrig sim serve kdc101``."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+import serial
+
+from drivers.kdc101 import KDC101
+from drivers.kdc101 import payloads as pl
+from drivers.kdc101.apt import AptFramer, Message, MsgId, command, data_message, encode
+from instrument.clock import PacedClock, VirtualClock
+from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
+from simulators.kdc101.kinematics import (
+    Trajectory,
+    clip_to_travel,
+    plan_move,
+    trapezoid_duration,
+)
+
+CPM = 34554.96
+ROOT = Path(__file__).resolve().parents[2]
+_names = itertools.count()
+
+
+# ---- kinematics --------------------------------------------------------------------------
+def test_trapezoid_positions_and_duration() -> None:
+    v, a = 2e-3, 4e-3  # ramps of 0.5 s over 0.5 mm
+    phases = plan_move(10.0, 1e-3, 0.0, 6e-3, v, a)
+    traj = Trajectory(1e-3, 0.0)
+    traj.replace_from(10.0, phases)
+    end = 10.0 + 5e-3 / v + v / a
+    assert traj.end_time == pytest.approx(end)
+    assert traj.position_at(10.25) == pytest.approx(1e-3 + 0.5 * a * 0.25**2)
+    assert traj.position_at(10.5) == pytest.approx(1.5e-3)
+    assert traj.velocity_at(11.0) == pytest.approx(v)
+    assert traj.position_at(end - 0.5) == pytest.approx(5.5e-3)
+    assert traj.position_at(end) == pytest.approx(6e-3)
+    assert traj.position_at(end + 100) == 6e-3
+    assert traj.position_at(5.0) == 1e-3
+
+
+def test_triangle_when_the_move_is_short() -> None:
+    traj = Trajectory(0.0)
+    traj.replace_from(0.0, plan_move(0.0, 0.0, 0.0, 0.1e-3, 2.3e-3, 4e-3))
+    assert traj.end_time == pytest.approx(2 * (0.1e-3 / 4e-3) ** 0.5)
+    assert max(traj.velocity_at(t / 100 * traj.end_time) for t in range(101)) < 2.3e-3
+
+
+def test_retargeting_mid_move_keeps_the_past() -> None:
+    traj = Trajectory(0.0)
+    traj.replace_from(0.0, plan_move(0.0, 0.0, 0.0, 10e-3, 2e-3, 4e-3))
+    past = [traj.position_at(t / 10) for t in range(0, 21)]
+    x, v = traj.position_at(2.0), traj.velocity_at(2.0)
+    traj.replace_from(2.0, plan_move(2.0, x, v, 1e-3, 2e-3, 4e-3))  # turn round
+    assert [traj.position_at(t / 10) for t in range(0, 21)] == past  # a pure function of t
+    assert traj.velocity_at(2.0) == pytest.approx(v)  # no jump in velocity
+    assert traj.position_at(traj.end_time) == pytest.approx(1e-3)
+
+
+def test_travel_limit_is_a_dead_stop() -> None:
+    phases, t_hit = clip_to_travel(plan_move(0.0, 24e-3, 0.0, 30e-3, 2e-3, 4e-3), 0.0, 25e-3)
+    assert t_hit is not None
+    assert phases[-1].x0 == 25e-3 and phases[-1].v0 == 0.0
+    _, none = clip_to_travel(plan_move(0.0, 1e-3, 0.0, 0.0, 2e-3, 4e-3), 0.0, 25e-3)
+    assert none is None  # ending exactly on the switch is not a crash into it
+
+
+# ---- raw APT over kdc101sim:// ------------------------------------------------------------
+@dataclass
+class Wire:
+    clock: VirtualClock
+    sim: KDC101Simulator
+    port: serial.SerialBase
+    framer: AptFramer
+
+    def send(self, msg: Message) -> None:
+        self.port.write(encode(msg))
+
+    def messages(self, timeout: float) -> list[Message]:
+        """Everything the controller says within ``timeout`` (virtual) seconds."""
+        end = self.clock.now() + timeout
+        out: list[Message] = []
+        while self.clock.now() < end:
+            self.port.timeout = end - self.clock.now()
+            self.framer.feed(self.port.read(4096))
+            while (m := self.framer.next_message()) is not None:
+                out.append(m)
+        return out
+
+    def ask(self, msg: Message) -> Message:
+        self.send(msg)
+        return self.messages(0.01)[-1]
+
+
+@pytest.fixture
+def wire() -> Iterator[Wire]:
+    clock = VirtualClock()
+    sim = KDC101Simulator(clock)
+    name = f"wire{next(_names)}"
+    port = serial.serial_for_url(register(sim, name), timeout=0)
+    yield Wire(clock, sim, port, AptFramer())
+    port.close()
+    unregister(name)
+
+
+def test_hw_get_info_says_kdc101_with_a_27_serial(wire: Wire) -> None:
+    reply = wire.ask(command(MsgId.HW_REQ_INFO))
+    info = pl.HwInfo.unpack(reply.data or b"")
+    assert reply.msg_id == MsgId.HW_GET_INFO and (reply.dest, reply.source) == (0x01, 0x50)
+    assert info.model == "KDC101" and str(info.serial_number)[:2] == "27"
+    assert info.n_channels == 1 and info.stage_id == 9
+
+
+def test_serial_numbers_must_start_with_27() -> None:
+    with pytest.raises(ValueError, match="27xxxxxx"):
+        SimConfig(serial_number=83000001)
+
+
+def test_read_with_nothing_due_returns_after_the_timeout_in_virtual_time(wire: Wire) -> None:
+    wire.port.timeout = 30.0
+    t0 = wire.clock.now()
+    assert wire.port.read(1) == b""
+    assert wire.clock.now() - t0 == 30.0
+
+
+def test_read_jumps_to_the_move_completed_message(wire: Wire) -> None:
+    wire.send(data_message(MsgId.MOT_MOVE_RELATIVE, pl.pack_position(round(2 * CPM))))
+    wire.port.timeout = 60.0
+    t0 = wire.clock.now()
+    wire.framer.feed(wire.port.read(20))  # blocks (in virtual time) until the move ends
+    msg = wire.framer.next_message()
+    assert msg is not None and msg.msg_id == MsgId.MOT_MOVE_COMPLETED
+    took = wire.clock.now() - t0
+    assert took == pytest.approx(trapezoid_duration(round(2 * CPM) / CPM * 1e-3, 2e-3, 1.5e-3))
+    status = pl.DcStatus.unpack(msg.data or b"")
+    assert status.position == round(2 * CPM)
+    assert not status.bits & pl.BUSY
+
+
+def test_encoder_counts_are_quantized(wire: Wire) -> None:
+    wire.send(data_message(MsgId.MOT_MOVE_RELATIVE, pl.pack_position(1000)))
+    wire.clock.advance(0.05)  # mid-move
+    t = wire.clock.now()
+    reply = wire.ask(command(MsgId.MOT_REQ_POSCOUNTER, 1))
+    counts = pl.unpack_position(reply.data or b"")[1]
+    exact = (wire.sim.position_at(t) - wire.sim.counter_origin_m) * CPM * 1e3
+    assert counts == round(exact) and counts != exact
+    assert 0 < counts < 1000
+
+
+def test_status_updates_stop_after_50_unacknowledged(wire: Wire) -> None:
+    wire.send(command(MsgId.HW_START_UPDATEMSGS))
+    msgs = wire.messages(10.0)
+    updates = [m for m in msgs if m.msg_id == MsgId.MOT_GET_DCSTATUSUPDATE]
+    assert len(updates) == 50  # 5 s worth, then silence
+
+
+def test_acknowledged_status_updates_keep_coming_every_100_ms(wire: Wire) -> None:
+    wire.send(command(MsgId.HW_START_UPDATEMSGS))
+    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, pl.DIRECTION_FORWARD))
+    updates: list[pl.DcStatus] = []
+    times: list[float] = []
+    for _ in range(20):  # 10 s, acknowledging every 0.5 s
+        for m in wire.messages(0.5):
+            if m.msg_id == MsgId.MOT_GET_DCSTATUSUPDATE:
+                updates.append(pl.DcStatus.unpack(m.data or b""))
+                times.append(wire.clock.now())
+        wire.send(command(MsgId.MOT_ACK_DCSTATUSUPDATE))
+    assert len(updates) == 100
+    assert all(u.bits & pl.MOVING_FORWARD for u in updates)
+    positions = [u.position for u in updates]
+    assert positions == sorted(positions) and positions[-1] > positions[0]
+
+
+def test_velocity_move_ends_on_the_forward_hard_limit(wire: Wire) -> None:
+    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, pl.DIRECTION_FORWARD))
+    msgs = wire.messages(30.0)  # 20 mm at 2 mm/s takes ~10 s
+    stopped = [m for m in msgs if m.msg_id == MsgId.MOT_MOVE_STOPPED]
+    assert len(stopped) == 1
+    bits = pl.DcStatus.unpack(stopped[0].data or b"").bits
+    assert bits & pl.LIMIT_FORWARD and not bits & pl.BUSY
+    assert wire.sim.position_at(wire.clock.now()) == 25e-3
+
+
+def test_homing_sets_the_homed_bit_and_zeroes_the_counter(wire: Wire) -> None:
+    wire.send(command(MsgId.MOT_MOVE_HOME, 1))
+    during = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
+    assert during & pl.HOMING and during & pl.MOVING_REVERSE
+    msgs = wire.messages(20.0)
+    assert [m.msg_id for m in msgs] == [MsgId.MOT_MOVE_HOMED]
+    bits = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
+    assert bits & pl.HOMED and not bits & pl.HOMING
+    assert pl.unpack_position(wire.ask(command(MsgId.MOT_REQ_POSCOUNTER, 1)).data or b"")[1] == 0
+
+
+@pytest.mark.parametrize(
+    ("request_msg", "code", "text"),
+    [
+        (command(0x0777), 1, "unknown message id"),
+        (command(MsgId.MOT_REQ_POSCOUNTER, 2), 2, "no channel 2"),
+        (data_message(MsgId.MOT_SET_VELPARAMS, pl.VelParams(0, 1000, 10**8).pack()), 3,
+         "out of range"),
+        (command(MsgId.MOT_MOVE_STOP, 1, 9), 3, "stop mode"),
+        # A reply sent as a request:
+        (data_message(MsgId.HW_GET_INFO, bytes(84)), 1, "unknown message id"),
+    ],
+)
+def test_invalid_requests_get_a_rich_response(wire: Wire, request_msg: Message, code: int,
+                                              text: str) -> None:
+    reply = wire.ask(request_msg)
+    assert reply.msg_id == MsgId.HW_RICHRESPONSE
+    rich = pl.RichResponse.unpack(reply.data or b"")
+    assert (rich.msg_id, rich.code) == (request_msg.msg_id, code)
+    assert text in rich.text
+
+
+def test_moving_a_disabled_channel_is_refused(wire: Wire) -> None:
+    wire.send(command(MsgId.MOD_SET_CHANENABLESTATE, 1, pl.CHAN_DISABLED))
+    reply = wire.ask(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(5000)))
+    assert pl.RichResponse.unpack(reply.data or b"").code == 4
+    assert wire.sim.velocity_at(wire.clock.now() + 0.5) == 0.0
+
+
+def test_plate_position_is_a_pure_function_of_time() -> None:
+    clock = VirtualClock()
+    sim = KDC101Simulator(clock)
+    url = register(sim, "pure")
+    try:
+        stage = KDC101(url, clock=clock)
+        stage.home()
+        t0 = clock.now()
+        stage.move_to(4e-3)
+        t1 = clock.now()
+        samples = [sim.position_at(t0 + i * (t1 - t0) / 20) for i in range(21)]
+        stage.move_to(1e-3)  # later commands do not rewrite the past
+        assert [sim.position_at(t0 + i * (t1 - t0) / 20) for i in range(21)] == samples
+        assert samples == sorted(samples)
+        assert samples[-1] - sim.counter_origin_m == pytest.approx(4e-3, abs=1e-3 / CPM)
+        # In the driver's (homed) axis, scalar and vectorised, for the DAQ simulator:
+        ts = np.linspace(t0, t1, 21)
+        axis = sim.axis_positions_at(ts)
+        assert axis[0] == pytest.approx(0.0, abs=1e-12)
+        assert axis[-1] == pytest.approx(stage.config.m_from_counts(round(4 * CPM)), abs=1e-12)
+        assert axis == pytest.approx([sim.axis_position_at(t) for t in ts], abs=1e-15)
+        assert axis == pytest.approx(np.array(samples) - sim.counter_origin_m, abs=1e-15)
+        # Before homing ended the axis was the power-on one (counter zero at 5 mm extension).
+        assert sim.axis_position_at(0.0) == 0.0
+        assert sim.axis_position_at(1.0) == pytest.approx(sim.position_at(1.0) - 5e-3)
+        stage.close()
+    finally:
+        unregister("pure")
+
+
+# ---- out of process: gelrig sim serve kdc101 ---------------------------------------------
+@pytest.fixture
+def served(request: pytest.FixtureRequest) -> Iterator[str]:
+    """Start ``gelrig sim serve kdc101`` with the given options; yield the address it prints."""
+    args = [sys.executable, "-m", "gelrig.cli", "sim", "serve", "kdc101", *request.param]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert "listening on" in line, line + (proc.stderr.read() if proc.stderr else "")
+        yield line.rsplit(" ", 1)[-1].strip()
+    finally:
+        proc.terminate()
+        assert proc.wait(timeout=10) == 0
+        for stream in (proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
+
+
+@pytest.mark.parametrize("served", [["--pty", "--clock", "paced:20", "--serial", "27555555"],
+                                    ["--tcp", "127.0.0.1:0", "--clock", "paced:20"]],
+                         indirect=True, ids=["pty", "tcp"])
+def test_served_simulator_drives_like_the_real_thing(served: str) -> None:
+    clock = PacedClock(20.0)  # the driver's clock runs at the server's pace
+    with KDC101(served, clock=clock) as stage:
+        if served.startswith("/dev/"):
+            assert not stage.rts_supported  # a pty cannot toggle RTS: tolerated
+            assert stage.identify().serial_number == 27555555
+        stage.home()
+        stage.move_to(1.5e-3)
+        assert stage.position_counts() == round(1.5 * CPM)
+        assert stage.status().homed
+
+
+def test_serve_refuses_a_virtual_clock() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "gelrig.cli", "sim", "serve", "kdc101", "--tcp", "127.0.0.1:0",
+         "--clock", "virtual"], capture_output=True, text=True, cwd=ROOT, timeout=30)
+    assert proc.returncode == 2
+    assert "--clock" in proc.stderr and "in-process" in proc.stderr
