@@ -96,6 +96,8 @@ class Usb6001ForceSensor:
                 raise
         self._task = task
         self._reader = AnalogSingleChannelReader(task.in_stream)
+        # One channel, arrays sized here: skip the per-read channel-count query (an RPC).
+        self._reader.verify_array_shape = False
 
     @classmethod
     def open(

@@ -54,19 +54,21 @@ class ForceRecorder:
         self._poll_z = self.rig.stage.position()
         self._poll_t = self.ctx.clock.now()
 
-    def _block_size(self, watch: tuple[float, ...]) -> int:
+    def _block_size(self, watch: tuple[float, ...], n_max: int) -> int:
         if math.isnan(self._last_f) or self._slope <= 0:
-            return self.n_max
+            return n_max
         room = min((w - self._last_f for w in watch if w > self._last_f), default=math.inf)
         if math.isinf(room):
-            return self.n_max
-        return int(min(self.n_max, max(1, math.floor(room / self._slope / 2))))
+            return n_max
+        return int(min(n_max, max(1, math.floor(room / self._slope / 2))))
 
-    def read(self, watch: tuple[float, ...] = ()) -> dict[str, FloatArray]:
-        """Read, stamp and publish one block; returns its columns."""
+    def read(
+        self, watch: tuple[float, ...] = (), n_max: int | None = None
+    ) -> dict[str, FloatArray]:
+        """Read, stamp and publish one block (at most ``n_max`` samples); returns its columns."""
         self.ctx.tick()
         limits = tuple(il.limit for il in self.ctx.interlocks if il.column == "force_N")
-        n = self._block_size(watch + limits)
+        n = self._block_size(watch + limits, n_max or self.n_max)
         try:
             block = self.rig.force.read_block(n)
             over: ForceOverRangeError | None = None
@@ -124,14 +126,18 @@ class ForceRecorder:
         while self.rig.stage.is_moving():
             self.read()
 
-    def dwell(self, duration: float, progress: bool = False, label: str = "") -> None:
-        """Keep reading for ``duration`` seconds of clock time."""
+    def dwell(self, duration: float, progress: bool = False, label: str = "",
+              block_time: float = 2.0) -> None:
+        """Keep reading for ``duration`` seconds of clock time, in blocks of up to
+        ``block_time`` (nothing moves, so blocks can be long; they still shrink near a limit)."""
         clock = self.ctx.clock
         start = clock.now()
         end = start + duration
         next_report = start
+        n_hold = max(1, round(self.rate * block_time))
         while clock.now() < end:
-            self.read()
+            remaining = max(1, math.ceil((end - clock.now()) * self.rate))
+            self.read(n_max=min(n_hold, remaining))
             now = clock.now()
             if progress and now >= next_report:
                 self.ctx.progress((now - start) / duration, now - start, end - now, label,

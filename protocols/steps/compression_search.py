@@ -70,6 +70,8 @@ class CompressionContactSearch(StepDefinition):
         assert isinstance(rig, CompressionRig)
         stage, limits = rig.stage, rig.limits
         ctx.interlocks = (Interlock("force", "force_N", limits.max_force, "N"),)
+        if not stage.status().homed:  # before acquiring: homing is a blocking wait
+            stage.home(wait=True)
         rec = ForceRecorder(ctx, params["rate"])
         rec.start()
         stage.set_velocity(limits.fast_speed, limits.acceleration)

@@ -151,6 +151,11 @@ class KDC101Simulator:
         with self._lock:
             return self.kinematics.position_at(t)
 
+    def positions_at(self, ts: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``position_at`` for an array of times (a whole acquisition block in one call)."""
+        with self._lock:
+            return self.kinematics.positions_at(np.asarray(ts, dtype=float))
+
     def velocity_at(self, t: float) -> float:
         """Actuator velocity (m/s) at time ``t``."""
         with self._lock:

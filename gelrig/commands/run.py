@@ -1,0 +1,190 @@
+"""``gelrig run | plan | resume | export``: protocols on a rig, from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from gelrig.console import lab_time
+from gelrig.rigfile import RigSpec, default_rig, load_rig, parse_rig
+from instrument.clock import clock_from_spec
+from instrument.csvio import write_columns
+from instrument.errors import ConfigError
+from instrument.store import RunDirectory, read_step
+from protocols.events import RunState
+from protocols.spec import ProtocolSpec, load_protocol, paper_protocol, parse_protocol
+
+EXIT = {RunState.COMPLETED: 0, RunState.FAILED: 1, RunState.ABORTED: 3}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    run = sub.add_parser("run", help="run a protocol on a rig, recording everything")
+    _protocol_args(run)
+    run.add_argument("--clock", default=None, metavar="real|virtual|paced:K",
+                     help="time base (default: virtual on a simulated rig, real otherwise)")
+    run.add_argument("--out", default=None, help="run directory (default runs/<time>-<rig>)")
+    run.set_defaults(handler=cmd_run)
+
+    plan = sub.add_parser("plan", help="print a protocol's steps, duration and limit checks")
+    _protocol_args(plan)
+    plan.set_defaults(handler=cmd_plan)
+
+    resume = sub.add_parser("resume", help="continue a run from its last completed step")
+    resume.add_argument("run_dir", metavar="RUN_DIR")
+    resume.add_argument("--clock", default=None, metavar="real|virtual|paced:K")
+    resume.set_defaults(handler=cmd_resume)
+
+    export = sub.add_parser("export", help="write a run's data as CSV")
+    export.add_argument("run_dir", metavar="RUN_DIR")
+    export.add_argument("--csv", action="store_true", required=True, help="export as CSV")
+    export.add_argument("--out", default=None, help="folder (default RUN_DIR/csv)")
+    export.set_defaults(handler=cmd_export)
+
+
+def _protocol_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("protocol", metavar="PROTOCOL",
+                        help="protocol file, or paper:compression / paper:shear")
+    parser.add_argument("--rig", default=None, metavar="RIG.toml",
+                        help="rig file (default: the built-in simulated rig for the protocol)")
+
+
+def resolve_protocol(name: str) -> ProtocolSpec:
+    if name.startswith("paper:"):
+        return load_protocol(paper_protocol(name.split(":", 1)[1]))
+    return load_protocol(name)
+
+
+def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
+    rig = load_rig(path if path else default_rig(protocol.rig))
+    if rig.kind != protocol.rig:
+        raise ConfigError("--rig", rig.source, f"is a {rig.kind} rig; protocol "
+                          f"{protocol.source} needs a {protocol.rig} rig")
+    return rig
+
+
+def print_plan(protocol: ProtocolSpec, rig: RigSpec) -> list[str]:
+    """Print the plan; returns the messages of failed limit checks."""
+    print(f"Protocol: {protocol.name}  ({protocol.source})")
+    print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
+    total = travel = 0.0
+    failed = []
+    for i, step in enumerate(protocol.steps):
+        plan = step.definition.plan(step.params, rig.limits)
+        total += plan.duration
+        travel += plan.travel
+        print(f"\n{i}. {step.name} [{step.kind}]: ~{lab_time(plan.duration)} lab time, "
+              f"travel up to {plan.travel * 1e3:.1f} mm")
+        for line in plan.lines:
+            print(f"   - {line}")
+        for check in plan.checks:
+            print(f"   {'ok  ' if check.ok else 'FAIL'} {check.name}: {check.message}")
+            if not check.ok:
+                failed.append(f"step {i} ({step.name}): {check.message}")
+    print(f"\nTotal: ~{lab_time(total)} lab time, travel up to {travel * 1e3:.1f} mm; "
+          f"limit checks {'all passed' if not failed else f'{len(failed)} FAILED'}")
+    return failed
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    protocol = resolve_protocol(args.protocol)
+    failed = print_plan(protocol, resolve_rig(args.rig, protocol))
+    if failed:
+        raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
+    return 0
+
+
+def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
+    from gelrig.session import check_clock
+
+    spec = spec or ("virtual" if rig.simulated else "real")
+    clock = clock_from_spec(spec)
+    check_clock(rig, clock, spec)
+    return clock, spec
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from gelrig.session import default_run_dir, execute, metadata
+
+    protocol = resolve_protocol(args.protocol)
+    rig = resolve_rig(args.rig, protocol)
+    failed = print_plan(protocol, rig)
+    if failed:
+        raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
+    clock, spec = _clock(args.clock, rig)
+    out = Path(args.out) if args.out else default_run_dir(protocol)
+    run = RunDirectory.create(out, metadata(protocol, rig, spec))
+    print(f"\nrecording to {out.resolve()} ({spec} clock)")
+    state, runner = execute(protocol, rig, clock, run)
+    summarise(run, state, runner.reason)
+    return EXIT.get(state, 1)
+
+
+def cmd_resume(args: argparse.Namespace) -> int:
+    from gelrig.session import execute
+
+    run = RunDirectory(args.run_dir)
+    meta = run.read_metadata()
+    if meta.get("status") == "completed":
+        print(f"{run.path} already completed; nothing to resume")
+        return 0
+    protocol = parse_protocol(meta["protocol"], meta.get("protocol_file", "<run.json>"))
+    rig = parse_rig(meta["rig"], meta.get("rig_file", "<run.json>"))
+    clock, spec = _clock(args.clock or meta.get("clock"), rig)
+    archived = run.archive_incomplete()
+    completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+    print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
+          + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
+    run.update(resumed=[*meta.get("resumed", []), spec])
+    state, runner = execute(protocol, rig, clock, run, completed)
+    summarise(run, state, runner.reason)
+    return EXIT.get(state, 1)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    run = RunDirectory(args.run_dir)
+    meta = run.read_metadata()
+    out = Path(args.out) if args.out else run.path / "csv"
+    written = []
+    for step in [*meta["steps"], *meta.get("interrupted_steps", [])]:
+        path = run.path / step["file"]
+        if not path.exists():
+            print(f"step {step['index']} ({step['name']}): {step['file']} is missing")
+            continue
+        data = read_step(path)
+        target = out / (Path(step["file"]).stem + ".csv")
+        write_columns(target, data)
+        written.append(target)
+        n = len(next(iter(data.values()))) if data else 0
+        print(f"{target} ({n} rows, {step['status']})")
+    (out / "run.json").write_text(json.dumps(meta, indent=2))
+    print(f"exported {len(written)} step(s) to {out.resolve()}")
+    return 0
+
+
+def summarise(run: RunDirectory, state: RunState, reason: str) -> None:
+    meta = run.read_metadata()
+    print(f"\nrun {state.value}: {reason}")
+    for step in meta["steps"]:
+        results = step.get("results") or {}
+        brief = {k: v for k, v in results.items() if isinstance(v, int | float | str)}
+        print(f"  {step['index']}. {step['name']}: {step['status']}, {step['samples']} samples"
+              + (f"; {_brief(brief)}" if brief else ""))
+        for fit in results.get("fits", []):
+            if "G_e" in fit:
+                terms = ", ".join(f"G {r['G']:.0f} Pa tau {r['tau']:.0f} s" for r in fit["relax"])
+                print(f"     fit: G_e {fit['G_e']:.0f} Pa, {terms}")
+    print(f"data: {run.path.resolve()}  (gelrig export {run.path} --csv)")
+
+
+def _brief(values: dict[str, Any]) -> str:
+    out = []
+    for key, value in values.items():
+        if isinstance(value, float) and key.endswith("_m"):
+            out.append(f"{key[:-2]} {value * 1e3:.4f} mm")
+        elif isinstance(value, float):
+            out.append(f"{key} {value:.4g}")
+        else:
+            out.append(f"{key} {value}")
+    return ", ".join(out)

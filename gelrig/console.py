@@ -1,0 +1,101 @@
+"""Terminal face of a run: a rich progress bar with lab-time ETA and live values, as an
+event subscriber, and the lines a scientist wants to see when states change."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskID, TextColumn
+
+from protocols.events import (
+    Event,
+    Fault,
+    Finished,
+    InterlockTrip,
+    StateChanged,
+    StepFinished,
+    StepStarted,
+)
+from protocols.events import (
+    Progress as ProgressEvent,
+)
+
+
+def lab_time(seconds: float) -> str:
+    """'1 h 02 min', '3 min 20 s', '12.5 s'."""
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = max(seconds, 0.0)
+    if seconds >= 3600:
+        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+    if seconds >= 60:
+        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+    return f"{seconds:.1f} s"
+
+
+def _values(values: dict[str, float]) -> str:
+    out = []
+    for key, value in values.items():
+        if key.endswith("_m"):
+            out.append(f"{key[:-2]} {value * 1e3:.4f} mm")
+        elif key.endswith("_N"):
+            out.append(f"{key[:-2]} {value * 1e3:.3f} mN")
+        elif key.endswith("_m_s"):
+            out.append(f"{key[:-4]} {value:.3g} m/s")
+        else:
+            out.append(f"{key} {value:.4g}")
+    return ", ".join(out)
+
+
+class ConsoleView:
+    """Subscriber: one progress bar per step, state changes and faults as lines."""
+
+    def __init__(self, console: Console | None = None):
+        self.console = console or Console(stderr=True)
+        self.progress = Progress(
+            TextColumn("[bold]{task.description}"), BarColumn(),
+            TextColumn("{task.percentage:>5.1f}%"), TextColumn("ETA {task.fields[eta]}"),
+            TextColumn("{task.fields[live]}"), console=self.console, transient=False,
+        )
+        self._task: TaskID | None = None
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> ConsoleView:
+        self.progress.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.progress.stop()
+
+    def __call__(self, event: Event) -> None:
+        with self._lock:
+            self._handle(event)
+
+    def _handle(self, event: Event) -> None:
+        if isinstance(event, StepStarted):
+            self._task = self.progress.add_task(f"{event.index}: {event.name}", total=1.0,
+                                                eta="?", live="")
+        elif isinstance(event, ProgressEvent) and self._task is not None:
+            live = event.message
+            if event.values:
+                live = f"{live} ({_values(dict(event.values))})" if live else _values(
+                    dict(event.values))
+            self.progress.update(self._task, completed=event.fraction,
+                                 eta=lab_time(event.remaining), live=live)
+        elif isinstance(event, StepFinished):
+            if self._task is not None:
+                done = event.status == "completed"
+                self.progress.update(self._task, completed=1.0 if done else None, eta="-",
+                                     live=event.status)
+            self._task = None
+        elif isinstance(event, StateChanged) and event.reason:
+            self.console.print(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}")
+        elif isinstance(event, InterlockTrip):
+            self.console.print(f"[bold red]INTERLOCK[/] {event.message}; motion stopped")
+        elif isinstance(event, Fault):
+            self.console.print(f"[bold red]FAULT[/] {event.kind}: {event.message}; "
+                               "motion stopped")
+        elif isinstance(event, Finished):
+            self.console.print(f"run {event.state.value}: {event.reason}")

@@ -1,0 +1,136 @@
+"""The rig factory: a validated rig file + a clock -> a connected rig of real drivers.
+
+A composition root (design.md): it wires drivers to transports, and for instruments whose
+transport is ``simulator`` it starts the simulator first and points the same driver at it
+through the instrument's real wire protocol (APT bytes over a pyserial URL, the NI gRPC
+service, bracketed ASCII over pyvisa). Nothing imports this module but the entry points.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable
+
+from drivers.mcr501.driver import MCR501
+from gelrig.rigfile import RigSpec
+from instrument.clock import Clock
+from instrument.contact import FloatArray
+from protocols.rig import CompressionLimits, CompressionRig, Rig, ShearLimits, ShearRig
+
+log = logging.getLogger(__name__)
+
+
+def build_rig(spec: RigSpec, clock: Clock) -> Rig:
+    """Connect every instrument of ``spec`` (starting simulators as needed)."""
+    if spec.kind == "shear":
+        return _shear(spec, clock)
+    return _compression(spec, clock)
+
+
+def _close_all(closers: list[Callable[[], None]]) -> None:
+    for closer in reversed(closers):
+        try:
+            closer()
+        except Exception:
+            log.exception("cleanup failed")
+
+
+def _shear(spec: RigSpec, clock: Clock) -> ShearRig:
+    from simulators.mcr501.config import SimConfig
+    from simulators.mcr501.instrument import MCR501Simulator
+    from simulators.mcr501.link import DirectLink
+    from simulators.mcr501.server import SimulatorServer
+
+    entry = spec.instruments["rheometer"]
+    closers: list[Callable[[], None]] = []
+    try:
+        if entry.simulated:
+            sim_args = {k: spec.simulator[k] for k in ("r1", "r2", "mu", "lower_angle",
+                                                        "touch_gap")}
+            if "material" in spec.simulator:
+                sim_args["material"] = spec.simulator["material"]
+            sim = MCR501Simulator(clock, SimConfig(**sim_args, seed=int(spec.simulator["seed"]),
+                                                   arm=entry.config.arm))
+            if spec.simulator["link"] == "direct":
+                driver = MCR501(DirectLink(sim), clock, entry.config)
+                where = "in-process link"
+            else:
+                server = SimulatorServer(sim).start()
+                closers.append(server.close)
+                driver = MCR501.open(server.resource, clock, entry.config)
+                where = server.resource
+        else:
+            driver = MCR501.open(entry.address, clock, entry.config,
+                                 backend=entry.extra.get("backend", "@py"))
+            where = entry.address
+        closers.insert(0, driver.close)
+        identities: dict[str, object] = {
+            "rheometer": {"identity": driver.identify(), "transport": entry.transport,
+                          "address": where}}
+    except BaseException:
+        _close_all(closers)
+        raise
+    assert isinstance(spec.limits, ShearLimits)
+    return ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
+
+
+def _compression(spec: RigSpec, clock: Clock) -> CompressionRig:
+    from drivers.kdc101 import KDC101
+    from drivers.usb6001.sensor import Usb6001ForceSensor
+    from instrument.errors import ConfigError
+    from simulators.kdc101 import KDC101Simulator, register, unregister
+    from simulators.usb6001.rig import SIM_OFFSET, compression_daq
+    from simulators.usb6001.server import start_server
+
+    stage_entry, force_entry = spec.instruments["stage"], spec.instruments["force"]
+    chain = force_entry.extra["chain"]
+    closers: list[Callable[[], None]] = []
+    identities: dict[str, object] = {}
+    try:
+        if stage_entry.simulated:
+            stage_sim = KDC101Simulator(clock)
+            name = f"gelrig-{id(stage_sim):x}"
+            address = register(stage_sim, name)
+            closers.append(lambda: unregister(name))
+        else:
+            address = stage_entry.address
+        stage = KDC101(address, stage_entry.config, clock)
+        closers.append(stage.close)
+        identities["stage"] = {**stage.identify().__dict__, "transport": stage_entry.transport,
+                               "address": address}
+        if force_entry.simulated:
+            if not stage_entry.simulated:
+                raise ConfigError("force.transport", "simulator", "a simulated force needs "
+                                  "the simulated stage (its plate drives the contact)", spec.source)
+            sim = spec.simulator
+            home = stage_sim.config.home_offset_m
+
+            def plate(ts: FloatArray) -> FloatArray:  # homed stage frame, fixed physically
+                return stage_sim.positions_at(ts) - home
+
+            kwargs = {"material": sim["material"]} if "material" in sim else {}
+            device = compression_daq(
+                clock, plate, first_touch=sim["first_touch"], vectorized=True,
+                sphere_radius=sim["sphere_diameter"] / 2, seed=int(sim["seed"]),
+                chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
+                noise_rms=sim["noise"] * chain.sensitivity, **kwargs)
+            server = start_server(device)
+            closers.append(server.stop)
+            force_address = f"grpc://{server.address}"
+        else:
+            force_address = force_entry.address if force_entry.transport == "grpc" else "local"
+        force = Usb6001ForceSensor.open(force_address, force_entry.config, chain, clock)
+        closers.append(force.close)
+        identities["force"] = {**force.identity(), "transport": force_entry.transport}
+    except BaseException:
+        _close_all(closers)
+        raise
+    assert isinstance(spec.limits, CompressionLimits)
+    # stage.close and force.close run in CompressionRig.close; the rest (servers) after them
+    hooks = [c for c in closers if c not in (stage.close, force.close)]
+    return CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,
+                          list(reversed(hooks)))
+
+
+__all__ = ["build_rig"]
