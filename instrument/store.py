@@ -59,6 +59,7 @@ class StepWriter:
         self._file = h5py.File(path, "w", libver="latest")
         for key, value in attrs.items():
             self._file.attrs[key] = json.dumps(value) if isinstance(value, dict | list) else value
+        self._file.attrs["columns"] = json.dumps(list(self.columns))
         self._datasets = {}
         for name, unit in self.columns.items():
             ds = self._file.create_dataset(
@@ -255,7 +256,9 @@ def read_step(path: str | Path, columns: Sequence[str] | None = None) -> dict[st
     if not path.exists():
         raise ConfigError("step file", str(path), "is missing")
     with _open_readable(path) as handle:
-        names = list(columns or [k for k in handle if isinstance(handle[k], h5py.Dataset)])
+        stored = [k for k in handle if isinstance(handle[k], h5py.Dataset)]
+        order = json.loads(handle.attrs.get("columns", "[]"))
+        names = list(columns or [k for k in order if k in stored] or stored)
         return {name: np.asarray(handle[name][:], dtype=float) for name in names}
 
 

@@ -99,7 +99,10 @@ def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
     from gelrig.session import check_clock
 
     spec = spec or ("virtual" if rig.simulated else "real")
-    clock = clock_from_spec(spec)
+    try:
+        clock = clock_from_spec(spec)
+    except ConfigError as exc:
+        raise ConfigError("--clock", exc.value, exc.allowed) from None
     check_clock(rig, clock, spec)
     return clock, spec
 

@@ -18,6 +18,13 @@ from instrument.loadcell import ForceBlock, ForceOverRangeError
 from protocols.context import StepContext
 from protocols.rig import CompressionRig
 
+#: Stage polls kept to stamp samples with the plate position.
+_POLLS = 256
+#: Longest backlog (s of samples) drained in one read when the loop has fallen behind.
+_MAX_CATCH_UP = 5.0
+#: Samples kept to estimate the force's noise and trend for the look-ahead.
+_RECENT = 64
+
 COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_range": "1"}
 
 
@@ -37,8 +44,11 @@ class ForceRecorder:
         self.kept: dict[str, list[FloatArray]] = {k: [] for k in COLUMNS}
         self._poll_t = math.nan
         self._poll_z = math.nan
+        self._polls_t: FloatArray = np.empty(0)
+        self._polls_z: FloatArray = np.empty(0)
         self._last_f = math.nan
-        self._slope = 0.0  # N per sample
+        self._last_t: float | None = None
+        self._recent: FloatArray = np.empty(0)  # the latest forces, for noise and trend
 
     def start(self) -> None:
         force = self.rig.force
@@ -51,16 +61,31 @@ class ForceRecorder:
         self._poll()
 
     def _poll(self) -> None:
+        before = self.ctx.clock.now()
         self._poll_z = self.rig.stage.position()
-        self._poll_t = self.ctx.clock.now()
+        self._poll_t = 0.5 * (before + self.ctx.clock.now())  # the reply's likely moment
+        self._polls_t = np.append(self._polls_t[-(_POLLS - 1):], self._poll_t)
+        self._polls_z = np.append(self._polls_z[-(_POLLS - 1):], self._poll_z)
 
     def _block_size(self, watch: tuple[float, ...], n_max: int) -> int:
-        if math.isnan(self._last_f) or self._slope <= 0:
-            return n_max
-        room = min((w - self._last_f for w in watch if w > self._last_f), default=math.inf)
+        """Samples that can be read before a watched level could be crossed (halved for
+        safety); one sample once the force is within 5 sigma of a level."""
+        recent = self._recent
+        if recent.size < 2:
+            return 1 if watch else n_max
+        last = float(recent[-1])
+        sigma = 1.4826 * float(np.median(np.abs(np.diff(recent)))) / math.sqrt(2.0)
+        k = max(1, recent.size // 4)
+        slope = (float(recent[-k:].mean()) - float(recent[:k].mean())) / (recent.size - k)
+        room = min((w - last for w in watch), default=math.inf)
         if math.isinf(room):
             return n_max
-        return int(min(n_max, max(1, math.floor(room / self._slope / 2))))
+        room -= 5.0 * sigma
+        if room <= 0:
+            return 1
+        if slope <= 0:
+            return n_max
+        return int(min(n_max, max(1, math.floor(room / slope / 2))))
 
     def read(
         self, watch: tuple[float, ...] = (), n_max: int | None = None
@@ -68,7 +93,12 @@ class ForceRecorder:
         """Read, stamp and publish one block (at most ``n_max`` samples); returns its columns."""
         self.ctx.tick()
         limits = tuple(il.limit for il in self.ctx.interlocks if il.column == "force_N")
-        n = self._block_size(watch + limits, n_max or self.n_max)
+        cap = n_max or self.n_max
+        n = self._block_size(watch + limits, cap)
+        if n == cap and self._last_t is not None:
+            # Behind the sample clock (paced or real time)? Drain the backlog in one read.
+            backlog = math.floor((self.ctx.clock.now() - self._last_t) * self.rate)
+            n = max(n, min(backlog, round(self.rate * _MAX_CATCH_UP)))
         try:
             block = self.rig.force.read_block(n)
             over: ForceOverRangeError | None = None
@@ -85,17 +115,13 @@ class ForceRecorder:
         return data
 
     def _stamp(self, block: ForceBlock) -> dict[str, FloatArray]:
-        t0, z0 = self._poll_t, self._poll_z
         self._poll()
-        if len(block) and self._poll_t > t0:
-            z = np.interp(block.t, [t0, self._poll_t], [z0, self._poll_z])
-        else:
-            z = np.full(len(block), self._poll_z)
-        if len(block) >= 2:
-            self._slope = float(block.force[-1] - block.force[0]) / (len(block) - 1)
-        elif len(block) == 1 and not math.isnan(self._last_f):
-            self._slope = float(block.force[-1] - self._last_f)
+        # Samples may be older than the previous poll when the loop lags (paced or real
+        # time): interpolate over the recent poll history, not just the last interval.
+        z = np.interp(block.t, self._polls_t, self._polls_z) if len(block) else np.empty(0)
         if len(block):
+            self._last_t = float(block.t[-1])
+            self._recent = np.concatenate((self._recent, block.force))[-_RECENT:]
             self._last_f = float(block.force[-1])
         return {
             "t_s": np.asarray(block.t, dtype=float),

@@ -1,0 +1,177 @@
+"""gelrig plan / run / resume / export on the built-in simulated rigs, and their bad inputs."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from gelrig.cli import main
+from instrument.store import RunDirectory, read_step
+
+SHORT = """
+[protocol]
+name = "short compression"
+rig = "compression"
+
+[[step]]
+kind = "compression_contact_search"
+confirm = 0
+
+[[step]]
+kind = "ramp_hold"
+hold = "{hold}"
+rate = "100 Hz"
+terms = 1
+"""
+
+
+@pytest.fixture
+def short(tmp_path):
+    def make(hold="60 s"):
+        path = tmp_path / f"short-{hold.replace(' ', '')}.toml"
+        path.write_text(SHORT.format(hold=hold))
+        return path
+    return make
+
+
+def one_error_line(capsys):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    return err[0]
+
+
+@pytest.mark.parametrize("name", ["paper:compression", "paper:shear"])
+def test_plan_prints_steps_duration_and_checks(capsys, name):
+    assert main(["plan", name]) == 0
+    out = capsys.readouterr().out
+    assert "Total: ~" in out and "limit checks all passed" in out and "lab time" in out
+
+
+def test_plan_fails_on_a_limit(tmp_path, capsys):
+    path = tmp_path / "deep.toml"
+    path.write_text('[protocol]\nname = "deep"\nrig = "shear"\n[[step]]\nkind = "speed_ladder"\n'
+                    'first_overlap = "1.1 mm"\n')
+    assert main(["plan", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert "FAIL overlap" in captured.out
+    assert "limit check" in captured.err and len(captured.err.strip().splitlines()) == 1
+
+
+def test_bad_protocol_file(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(SHORT.format(hold="-5 s"))
+    assert main(["run", str(path), "--out", str(tmp_path / "r")]) == 2
+    line = one_error_line(capsys)
+    assert "bad.toml" in line and "step[1].hold" in line and "-5" in line
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("edit,field", [
+    (("max_position = \"12 mm\"", "max_position = \"40 mm\""), "stage.max_position"),
+    (("transport = \"simulator\"\ncounts_per_mm", "transport = \"usb\"\ncounts_per_mm"),
+     "stage.transport"),
+    (("max_force = \"2 N\"", "max_force = \"-2 N\""), "limits.max_force"),
+    (("gain = 1000", "gain = \"loud\""), "gain"),
+    (("[limits]", "[limitz]"), "limitz"),
+])
+def test_bad_rig_file(tmp_path, capsys, short, edit, field):
+    from gelrig.rigfile import default_rig
+
+    text = default_rig("compression").read_text()
+    assert edit[0] in text
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text.replace(edit[0], edit[1], 1))
+    assert main(["run", str(short()), "--rig", str(rig), "--out", str(tmp_path / "r")]) == 2
+    line = one_error_line(capsys)
+    assert "rig.toml" in line and field in line
+
+
+def test_clock_checks(tmp_path, capsys, short):
+    from gelrig.rigfile import default_rig
+
+    assert main(["run", str(short()), "--clock", "paced:0", "--out", str(tmp_path / "a")]) == 2
+    assert "--clock" in one_error_line(capsys)
+    hardware = default_rig("compression").read_text().replace(
+        'transport = "simulator"\ncounts_per_mm',
+        'transport = "serial"\naddress = "/dev/ttyUSB9"\ncounts_per_mm', 1)
+    rig = tmp_path / "hw.toml"
+    rig.write_text(hardware)
+    assert main(["run", str(short()), "--rig", str(rig), "--clock", "virtual",
+                 "--out", str(tmp_path / "b")]) == 2
+    assert "virtual and paced time need a simulated rig" in one_error_line(capsys)
+
+
+def test_run_then_export(tmp_path, capsys, short):
+    out = tmp_path / "run"
+    assert main(["run", str(short()), "--out", str(out)]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "completed"
+    assert meta["software"]["name"] == "gelrig" and meta["clock"] == "virtual"
+    assert meta["instruments"]["stage"]["model"] == "KDC101"
+    assert str(meta["instruments"]["stage"]["serial_number"]).startswith("27")
+    assert meta["instruments"]["force"]["instrument"] == "NI USB-6001"
+    assert meta["protocol"]["protocol"]["name"] == "short compression"
+    assert meta["rig"]["rig"]["kind"] == "compression"
+    capsys.readouterr()
+    assert main(["export", str(out), "--csv"]) == 0
+    hold = pd.read_csv(out / "csv" / "01_ramp_and_hold.csv")
+    assert list(hold.columns) == ["t_s", "position_m", "delta_m", "force_N", "over_range"]
+    assert len(hold) == meta["steps"][1]["samples"] > 6000
+
+
+def _wait_for(predicate, timeout):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError("condition not met in time")
+
+
+def test_sigkill_mid_hold_keeps_data_and_resume_completes(tmp_path, short):
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gelrig.cli", "run", str(short("300 s")), "--out", str(out),
+         "--clock", "paced:20"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    run = RunDirectory(out)
+
+    def holding():
+        try:
+            steps = run.read_metadata()["steps"]
+        except Exception:
+            return False
+        if len(steps) < 2 or steps[1]["status"] != "running":
+            return False
+        try:
+            data = run.read_step(1)
+        except Exception:
+            return False
+        return data["t_s"].size > 0 and data["delta_m"].max() > 1.1e-3 and data
+
+    try:
+        seen = _wait_for(holding, 120)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(30)
+    flushed = seen["t_s"].size
+    after_kill = run.read_step(1)  # readable after SIGKILL, and nothing flushed is lost
+    assert after_kill["t_s"].size >= flushed
+    assert run.read_metadata()["status"] == "running"
+
+    assert main(["resume", str(out), "--clock", "virtual"]) == 0
+    meta = run.read_metadata()
+    assert meta["status"] == "completed"
+    assert [s["status"] for s in meta["steps"]] == ["completed", "completed"]
+    assert meta["steps"][1]["samples"] > 30000  # the hold ran again in full
+    kept = meta["interrupted_steps"][0]
+    assert kept["index"] == 1 and "attempt-1" in kept["file"]
+    partial = pd.DataFrame(read_step(Path(out) / kept["file"]))
+    assert len(partial) >= flushed
