@@ -12,7 +12,6 @@ from rich.progress import BarColumn, Progress, TaskID, TextColumn
 from protocols.events import (
     Event,
     Fault,
-    Finished,
     InterlockTrip,
     StateChanged,
     StepFinished,
@@ -90,12 +89,10 @@ class ConsoleView:
                 self.progress.update(self._task, completed=1.0 if done else None, eta="-",
                                      live=event.status)
             self._task = None
-        elif isinstance(event, StateChanged) and event.reason:
+        elif isinstance(event, StateChanged) and event.reason and not event.new.finished:
             self.console.print(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}")
         elif isinstance(event, InterlockTrip):
             self.console.print(f"[bold red]INTERLOCK[/] {event.message}; motion stopped")
         elif isinstance(event, Fault):
             self.console.print(f"[bold red]FAULT[/] {event.kind}: {event.message}; "
                                "motion stopped")
-        elif isinstance(event, Finished):
-            self.console.print(f"run {event.state.value}: {event.reason}")

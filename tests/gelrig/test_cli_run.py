@@ -175,3 +175,19 @@ def test_sigkill_mid_hold_keeps_data_and_resume_completes(tmp_path, short):
     assert kept["index"] == 1 and "attempt-1" in kept["file"]
     partial = pd.DataFrame(read_step(Path(out) / kept["file"]))
     assert len(partial) >= flushed
+
+
+def test_demo_runs_both_paper_protocols(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    runs = summary["runs"]
+    assert runs["compression"]["state"] == runs["shear"]["state"] == "completed"
+    touch = runs["compression"]["results"]["0"]["first_touch_m"]
+    assert touch == pytest.approx(6.2e-3, abs=10e-6)
+    fit = runs["compression"]["results"]["1"]["fits"][0]
+    assert fit["G_e"] == pytest.approx(7146, rel=0.02)
+    assert fit["relax"][0]["tau"] == pytest.approx(1413, rel=0.02)
+    assert runs["shear"]["results"]["0"]["touch_gap_m"] == pytest.approx(3e-3, abs=0.1e-3)
+    assert len(runs["shear"]["results"]["1"]["passes"]) == 40
+    out = capsys.readouterr().out
+    assert str(tmp_path.resolve()) in out
