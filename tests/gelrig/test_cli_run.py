@@ -191,3 +191,32 @@ def test_demo_runs_both_paper_protocols(tmp_path, capsys):
     assert len(runs["shear"]["results"]["1"]["passes"]) == 40
     out = capsys.readouterr().out
     assert str(tmp_path.resolve()) in out
+
+
+def test_ctrl_c_pauses_then_aborts(tmp_path, short):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gelrig.cli", "run", str(short("300 s")), "--out", str(out),
+         "--clock", "paced:20"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        stdin=subprocess.DEVNULL)
+    run = RunDirectory(out)
+
+    def status():
+        try:
+            return run.read_metadata().get("status")
+        except Exception:
+            return None
+
+    try:
+        _wait_for(lambda: status() == "running", 60)
+        proc.send_signal(signal.SIGINT)
+        _wait_for(lambda: status() == "paused", 60)  # at the next checkpoint
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 3
+    assert "Traceback" not in err and "pause requested" in err
+    meta = run.read_metadata()
+    assert meta["status"] == "aborted" and meta["reason"] == "aborted by Ctrl-C"
