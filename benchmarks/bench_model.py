@@ -11,11 +11,9 @@ sequential scan), and the naive O(N^2) double sum on 1e4 samples for contrast.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
+from _timing import median_time
 
 from instrument import paper
 from instrument.compression import ramp_hold_overlap
@@ -23,15 +21,6 @@ from instrument.contact import Material, NormalContact, hertz_prefactor, normal_
 
 N = 3_000_000
 DT = 1e-3
-
-
-def median_time(fn: Callable[[], object], repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def naive(t: np.ndarray, x: np.ndarray, material: Material, radius: float) -> np.ndarray:

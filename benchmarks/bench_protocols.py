@@ -15,8 +15,9 @@ import argparse
 import statistics
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
+
+from _timing import median_time
 
 from gelrig.factory import build_rig
 from gelrig.rigfile import default_rig, load_rig
@@ -61,21 +62,12 @@ def model_ladder() -> None:
                            margin=8e-3 - geometry.psi0)
 
 
-def median_wall(fn: Callable[[], object], repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     repeats = parser.parse_args().repeats
-    baselines = {"compression": median_wall(model_compression, repeats),
-                 "shear": median_wall(model_ladder, repeats)}
+    baselines = {"compression": median_time(model_compression, repeats),
+                 "shear": median_time(model_ladder, repeats)}
     labels = {"compression": "paper compression (search + 6 % ramp + 3000 s hold at 1 kHz)",
               "shear": "paper shear (contact search + 5 x 4 x 2 ladder)"}
     with tempfile.TemporaryDirectory() as tmp:

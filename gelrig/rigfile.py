@@ -10,7 +10,6 @@ simulated, so gelrig runs on a fresh machine with no hardware.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ from typing import Any
 from drivers.usb6001.config import Usb6001Config
 from instrument.contact import Material, RelaxationTerm
 from instrument.errors import ConfigError
-from instrument.fields import Field, parse_table
+from instrument.fields import Field, parse_table, read_toml
 from instrument.loadcell import LoadCellChain
 from instrument.rheometer import RheometerConfig
 from instrument.stage import StageConfig
@@ -189,16 +188,7 @@ def parse_rig(root: dict[str, Any], source: str = "<rig>") -> RigSpec:
 
 def load_rig(path: str | Path) -> RigSpec:
     """Read and validate a rig file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError("rig file", str(path), f"cannot be read ({exc.strerror})") from None
-    try:
-        root = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("TOML", str(path), f"not valid TOML: {exc}") from None
-    return parse_rig(root, str(path))
+    return parse_rig(read_toml(path, "rig file"), str(path))
 
 
 def default_rig(kind: str) -> Path:

@@ -8,8 +8,10 @@ raising one ConfigError that names the file, the field, the value and the allowe
 from __future__ import annotations
 
 import math
+import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from instrument.errors import ConfigError
@@ -77,3 +79,16 @@ def parse_table(
         else:
             out[f.key] = f.default
     return out
+
+
+def read_toml(path: str | Path, what: str) -> dict[str, Any]:
+    """A TOML file as a table; ConfigError naming the file if unreadable or malformed."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(what, str(path), f"cannot be read ({exc.strerror})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("TOML", str(path), f"not valid TOML: {exc}") from None

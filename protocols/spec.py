@@ -16,12 +16,12 @@ Loading validates everything before anything moves; errors name the file, the fi
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from instrument.errors import ConfigError
+from instrument.fields import read_toml
 from protocols.steps import KINDS, StepDefinition
 from protocols.steps.base import Params
 
@@ -95,16 +95,7 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
 
 def load_protocol(path: str | Path) -> ProtocolSpec:
     """Read and validate a protocol file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError("protocol file", str(path), f"cannot be read ({exc.strerror})") from None
-    try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("TOML", str(path), f"not valid TOML: {exc}") from None
-    return parse_protocol(table, str(path))
+    return parse_protocol(read_toml(path, "protocol file"), str(path))
 
 
 def paper_protocol(name: str) -> Path:
