@@ -40,7 +40,7 @@ class Field:
     def parse(self, raw: object, prefix: str = "", source: str | None = None) -> float:
         name = f"{prefix}{self.key}"
         if isinstance(raw, bool) or not isinstance(raw, str | int | float):
-            raise ConfigError(name, raw, self.allowed(), source)
+            raise ConfigError(name, raw, f"expected a number; {self.allowed()}", source)
         value = to_si(raw, self.unit or "dimensionless", name, source)
         return self.check(value, prefix, source)
 

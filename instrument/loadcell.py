@@ -15,7 +15,6 @@ USB-6001 driver in drivers/usb6001) and so can any test double.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -24,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from instrument.errors import ConfigError, InstrumentError, InstrumentTimeout
+from instrument.fields import Field
 from instrument.units import to_si
 
 FloatArray = NDArray[np.float64]
@@ -48,7 +48,7 @@ class LoadCellChain:
 
     def __post_init__(self) -> None:
         for spec in _FIELDS:
-            spec.check(getattr(self, spec.name), None)
+            spec.check(getattr(self, spec.key))
 
     @property
     def sensitivity(self) -> float:
@@ -80,7 +80,7 @@ class LoadCellChain:
 
         Unknown keys and out-of-range values raise ConfigError naming field, value and range.
         """
-        known = {spec.name: spec for spec in _FIELDS}
+        known = {spec.key: spec for spec in _FIELDS}
         for key in mapping:
             if key not in known:
                 raise ConfigError(key, mapping[key], f"unknown field; allowed: {', '.join(known)}",
@@ -91,37 +91,17 @@ class LoadCellChain:
             if not isinstance(raw, str | int | float):
                 raise ConfigError(key, raw, f"expected a number in {spec.unit}", source)
             value = to_si(raw, spec.unit, key, source)
-            values[key] = spec.check(value, source)
+            values[key] = spec.check(value, source=source)
         return cls(**values)
 
 
-@dataclass(frozen=True)
-class _Field:
-    """One calibration field: SI unit and allowed interval (low open or closed)."""
-
-    name: str
-    unit: str
-    low: float
-    high: float
-    low_open: bool = True
-
-    def check(self, value: float, source: str | None) -> float:
-        ok_low = value > self.low if self.low_open else value >= self.low
-        if not (isinstance(value, int | float) and math.isfinite(value) and ok_low
-                and value <= self.high):
-            bracket = "(" if self.low_open else "["
-            raise ConfigError(self.name, value,
-                              f"allowed {bracket}{self.low:g}, {self.high:g}] {self.unit}", source)
-        return float(value)
-
-
 _FIELDS = (
-    _Field("capacity", "N", 0.0, 1e5),
-    _Field("rated_output", "V/V", 0.0, 0.01),
-    _Field("excitation", "V", 0.0, 15.0),
-    _Field("gain", "V/V", 0.0, 1e5),
-    _Field("offset", "V", -10.5, 10.5, low_open=False),
-    _Field("bandwidth", "Hz", 0.0, 1e6),
+    Field("capacity", "N", lo=0.0, hi=1e5, lo_open=True),
+    Field("rated_output", "V/V", lo=0.0, hi=0.01, lo_open=True),
+    Field("excitation", "V", lo=0.0, hi=15.0, lo_open=True),
+    Field("gain", "V/V", lo=0.0, hi=1e5, lo_open=True),
+    Field("offset", "V", lo=-10.5, hi=10.5),
+    Field("bandwidth", "Hz", lo=0.0, hi=1e6, lo_open=True),
 )
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, fields
 from typing import Protocol, runtime_checkable
 
 from instrument.errors import ConfigError
+from instrument.fields import Field
 from instrument.units import to_si
 
 
@@ -139,41 +140,28 @@ class Rheometer(Protocol):
         ...
 
 
-@dataclass(frozen=True)
-class _Bound:
-    unit: str
-    lo: float
-    hi: float
-    lo_open: bool = False
-
-
-_BOUNDS: dict[str, _Bound] = {
-    "arm": _Bound("m", 1e-3, 0.5),
-    "torque_range": _Bound("N*m", 0.0, 1.0, lo_open=True),
-    "torque_resolution": _Bound("N*m", 0.0, 1e-3, lo_open=True),
-    "normal_force_range": _Bound("N", 0.0, 1000.0, lo_open=True),
-    "normal_force_resolution": _Bound("N", 0.0, 1.0, lo_open=True),
-    "max_speed": _Bound("m/s", 0.0, 1.0, lo_open=True),
-    "gap_min": _Bound("m", 0.0, 0.2),
-    "gap_max": _Bound("m", 0.0, 0.2, lo_open=True),
-    "overlap_limit": _Bound("m", 0.0, 0.01, lo_open=True),
-    "touch_gap": _Bound("m", 0.0, 0.2),
-    "timeout": _Bound("s", 0.0, 600.0, lo_open=True),
-    "gap_move_timeout": _Bound("s", 0.0, 86400.0, lo_open=True),
-    "poll_interval": _Bound("s", 0.0, 10.0, lo_open=True),
+_BOUNDS: dict[str, Field] = {
+    f.key: f
+    for f in (
+        Field("arm", "m", lo=1e-3, hi=0.5),
+        Field("torque_range", "N*m", lo=0.0, hi=1.0, lo_open=True),
+        Field("torque_resolution", "N*m", lo=0.0, hi=1e-3, lo_open=True),
+        Field("normal_force_range", "N", lo=0.0, hi=1000.0, lo_open=True),
+        Field("normal_force_resolution", "N", lo=0.0, hi=1.0, lo_open=True),
+        Field("max_speed", "m/s", lo=0.0, hi=1.0, lo_open=True),
+        Field("gap_min", "m", lo=0.0, hi=0.2),
+        Field("gap_max", "m", lo=0.0, hi=0.2, lo_open=True),
+        Field("overlap_limit", "m", lo=0.0, hi=0.01, lo_open=True),
+        Field("touch_gap", "m", lo=0.0, hi=0.2),
+        Field("timeout", "s", lo=0.0, hi=600.0, lo_open=True),
+        Field("gap_move_timeout", "s", lo=0.0, hi=86400.0, lo_open=True),
+        Field("poll_interval", "s", lo=0.0, hi=10.0, lo_open=True),
+    )
 }
 
 
-def _allowed(bound: _Bound) -> str:
-    left = "(" if bound.lo_open else "["
-    return f"allowed {left}{bound.lo:g}, {bound.hi:g}] {bound.unit}"
-
-
 def _check(name: str, value: float, source: str | None) -> None:
-    bound = _BOUNDS[name]
-    low_ok = value > bound.lo if bound.lo_open else value >= bound.lo
-    if not (math.isfinite(value) and low_ok and value <= bound.hi):
-        raise ConfigError(name, value, _allowed(bound), source)
+    _BOUNDS[name].check(value, source=source)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from instrument.errors import ConfigError
-from instrument.units import to_si
+from instrument.fields import Field
 
 
 @dataclass(frozen=True)
@@ -136,24 +136,30 @@ class StageConfig:
     move_timeout_s: float = 60.0
     poll_interval_s: float = 0.05
 
-    # TOML key -> (dataclass field, SI unit or "" for a pure number, lower, upper, open lower?)
-    _SPEC: ClassVar[dict[str, tuple[str, str, float, float, bool]]] = {
-        "counts_per_mm": ("counts_per_mm", "", 1e3, 1e6, True),
-        "velocity_factor": ("velocity_factor", "", 1e3, 1e9, True),
-        "accel_factor": ("accel_factor", "", 1e-3, 1e6, True),
-        "min_position": ("min_position_m", "m", 0.0, _ACTUATOR_TRAVEL_M, False),
-        "max_position": ("max_position_m", "m", 0.0, _ACTUATOR_TRAVEL_M, False),
-        "max_velocity": ("max_velocity_m_s", "m/s", 0.0, _Z825B_MAX_VELOCITY_M_S, True),
-        "acceleration": ("acceleration_m_s2", "m/s^2", 0.0, _ACCEL_CAP_M_S2, True),
-        "home_velocity": ("home_velocity_m_s", "m/s", 0.0, _Z825B_MAX_VELOCITY_M_S, True),
-        "reply_timeout": ("reply_timeout_s", "s", 0.0, 60.0, True),
-        "move_timeout": ("move_timeout_s", "s", 0.0, 3600.0, True),
-        "poll_interval": ("poll_interval_s", "s", 0.0, 1.0, True),
+    # TOML key -> (dataclass field, its allowed values)
+    _SPEC: ClassVar[dict[str, tuple[str, Field]]] = {
+        f.key: (name, f)
+        for name, f in (
+            ("counts_per_mm", Field("counts_per_mm", "", lo=1e3, hi=1e6, lo_open=True)),
+            ("velocity_factor", Field("velocity_factor", "", lo=1e3, hi=1e9, lo_open=True)),
+            ("accel_factor", Field("accel_factor", "", lo=1e-3, hi=1e6, lo_open=True)),
+            ("min_position_m", Field("min_position", "m", lo=0.0, hi=_ACTUATOR_TRAVEL_M)),
+            ("max_position_m", Field("max_position", "m", lo=0.0, hi=_ACTUATOR_TRAVEL_M)),
+            ("max_velocity_m_s", Field("max_velocity", "m/s", lo=0.0,
+                                       hi=_Z825B_MAX_VELOCITY_M_S, lo_open=True)),
+            ("acceleration_m_s2", Field("acceleration", "m/s^2", lo=0.0, hi=_ACCEL_CAP_M_S2,
+                                        lo_open=True)),
+            ("home_velocity_m_s", Field("home_velocity", "m/s", lo=0.0,
+                                        hi=_Z825B_MAX_VELOCITY_M_S, lo_open=True)),
+            ("reply_timeout_s", Field("reply_timeout", "s", lo=0.0, hi=60.0, lo_open=True)),
+            ("move_timeout_s", Field("move_timeout", "s", lo=0.0, hi=3600.0, lo_open=True)),
+            ("poll_interval_s", Field("poll_interval", "s", lo=0.0, hi=1.0, lo_open=True)),
+        )
     }
 
     def __post_init__(self) -> None:
-        for key, (name, unit, lo, hi, open_lo) in self._SPEC.items():
-            _check_range(key, getattr(self, name), unit, lo, hi, open_lo, None)
+        for name, spec in self._SPEC.values():
+            spec.check(getattr(self, name), "stage.")
         if not self.min_position_m < self.max_position_m:
             raise ConfigError(
                 "min_position",
@@ -174,10 +180,8 @@ class StageConfig:
             if key not in cls._SPEC:
                 allowed = ", ".join(sorted(cls._SPEC))
                 raise ConfigError(f"stage.{key}", raw, f"unknown field; allowed: {allowed}", source)
-            name, unit, lo, hi, open_lo = cls._SPEC[key]
-            value = to_si(raw, unit or "dimensionless", f"stage.{key}", source)
-            _check_range(key, value, unit, lo, hi, open_lo, source)
-            values[name] = value
+            name, spec = cls._SPEC[key]
+            values[name] = spec.parse(raw, "stage.", source)
         lo_pos = values.get("min_position_m", cls.min_position_m)
         hi_pos = values.get("max_position_m", cls.max_position_m)
         if not lo_pos < hi_pos:
@@ -242,14 +246,3 @@ class StageConfig:
                 f"acceleration {accel_m_s2 * 1e3:.4f} mm/s^2 outside (0, "
                 f"{_ACCEL_CAP_M_S2 * 1e3:.1f}] mm/s^2"
             )
-
-
-def _check_range(
-    key: str, value: float, unit: str, lo: float, hi: float, open_lo: bool, source: str | None
-) -> None:
-    ok = math.isfinite(value) and (value > lo if open_lo else value >= lo) and value <= hi
-    if not ok:
-        bracket = "(" if open_lo else "["
-        unit_txt = f" {unit}" if unit else ""
-        raise ConfigError(f"stage.{key}", value, f"allowed range {bracket}{lo}, {hi}]{unit_txt}",
-                          source)

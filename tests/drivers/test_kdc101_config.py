@@ -32,9 +32,9 @@ def test_from_mapping_accepts_units_and_si_numbers() -> None:
 @pytest.mark.parametrize(
     ("table", "field", "says"),
     [
-        ({"max_velocity": "5 mm/s"}, "stage.max_velocity", "allowed range (0.0, 0.0026]"),
-        ({"max_position": "30 mm"}, "stage.max_position", "allowed range [0.0, 0.025]"),
-        ({"counts_per_mm": 0}, "stage.counts_per_mm", "allowed range"),
+        ({"max_velocity": "5 mm/s"}, "stage.max_velocity", "allowed: a number in (0, 0.0026] m/s"),
+        ({"max_position": "30 mm"}, "stage.max_position", "allowed: a number in [0, 0.025] m"),
+        ({"counts_per_mm": 0}, "stage.counts_per_mm", "allowed: a number in (1000,"),
         ({"min_position": "5 mm", "max_position": "4 mm"}, "stage.min_position", "< max"),
         ({"max_velocity": "2 mm"}, "stage.max_velocity", "dimension"),
         ({"speed": 1}, "stage.speed", "unknown field"),

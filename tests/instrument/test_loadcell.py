@@ -88,7 +88,7 @@ def test_constructor_validates_too() -> None:
 
 
 def test_field_table_covers_the_dataclass() -> None:
-    assert [f.name for f in _FIELDS] == [f.name for f in dataclasses.fields(LoadCellChain)]
+    assert [f.key for f in _FIELDS] == [f.name for f in dataclasses.fields(LoadCellChain)]
 
 
 def test_force_block_flags() -> None:
