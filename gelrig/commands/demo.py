@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     summary: dict[str, object] = {}
     if not args.no_runs:
-        summary["runs"] = _runs(out / "runs")
+        summary["runs"] = runs = _runs(out / "runs")
+        summary["reports"] = _analyse(runs)
     rng = np.random.default_rng(args.seed)
     print("\nModel reference (the paper's parameters):")
     model = out / "model"
@@ -50,7 +51,22 @@ def run(args: argparse.Namespace) -> int:
     summary["model"] = {"compression": _compression(model, rng), "shear": _shear(model)}
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"\nwrote runs, CSV, PNG and summary.json to {out.resolve()}")
+    for kind, report in dict(summary.get("reports") or {}).items():
+        print(f"  {kind} report: {report}")
     return 0
+
+
+def _analyse(runs: dict[str, object]) -> dict[str, str]:
+    """Analyse each recorded run into its HTML report; print the one-screen summaries."""
+    from gelrig.analyze_run import analyze_run
+
+    reports = {}
+    for kind, info in runs.items():
+        assert isinstance(info, dict)
+        result = analyze_run(Path(info["run_dir"]))
+        print(f"\n== analysis of the {kind} run\n{result.summary}")
+        reports[kind] = str(result.report_path)
+    return reports
 
 
 def _runs(folder: Path) -> dict[str, object]:

@@ -32,6 +32,8 @@ class RampHold(StepDefinition):
         Field("retract", "m", 2e-3, 0.0, 20e-3, help="back-off from first touch afterwards"),
         Field("first_touch", "m", math.nan, 0.0, 25e-3,
               help="stage position of first touch; default: from the contact search"),
+        Field("tare_time", "s", 1.0, 0.0, 60.0,
+              help="force averaged for a tare just before the ramp, clear of the sphere"),
         Field("terms", "", 2, 1, 2, integer=True,
               help="relaxation terms fitted (1 and up to this)"),
     )
@@ -79,11 +81,15 @@ class RampHold(StepDefinition):
             Interlock("force", "force_N", limits.max_force, "N"),
             Interlock("overlap", "delta_m", limits.max_overlap, "m", absolute=False),
         )
+        if not stage.status().homed:  # positions mean nothing before homing
+            stage.home(wait=True)
         rec = ForceRecorder(ctx, params["rate"], first_touch=touch)
         rec.start()
         stage.set_velocity(limits.fast_speed, limits.acceleration)
         stage.move_to(touch - params["approach"], wait=False)
         rec.until_stopped()
+        if params["tare_time"] > 0:  # clear of the sphere: zero the force here
+            rig.force.tare(params["tare_time"])
         rec.clear()
         t_start = ctx.clock.now()
         stage.set_velocity(speed, limits.acceleration)

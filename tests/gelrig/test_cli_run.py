@@ -189,6 +189,8 @@ def test_demo_runs_both_paper_protocols(tmp_path, capsys):
     assert fit["relax"][0]["tau"] == pytest.approx(1413, rel=0.02)
     assert runs["shear"]["results"]["0"]["touch_gap_m"] == pytest.approx(3e-3, abs=0.1e-3)
     assert len(runs["shear"]["results"]["1"]["passes"]) == 40
+    for report in summary["reports"].values():
+        assert Path(report).exists() and Path(report).suffix == ".html"
     out = capsys.readouterr().out
     assert str(tmp_path.resolve()) in out
 

@@ -1,0 +1,40 @@
+"""``gelrig analyze RUN_DIR``: a run's figures, tables and model fit as an HTML report."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from gelrig.commands._args import quantity
+from instrument import paper
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    analyze = sub.add_parser("analyze", help="analyse a run directory into an HTML report")
+    analyze.add_argument("run_dir", metavar="RUN_DIR")
+    analyze.add_argument("--out", default=None, help="report folder (default RUN_DIR/analysis)")
+    analyze.add_argument("--r1", type=quantity("m"), default=paper.R1_SHEAR,
+                         help="shear rig: upper sphere radius (default the paper's 9.2 mm)")
+    analyze.add_argument("--r2", type=quantity("m"), default=paper.R2_SHEAR,
+                         help="shear rig: lower sphere radius (default the paper's 9.96 mm)")
+    analyze.add_argument("--terms", type=int, choices=(1, 2), default=1,
+                         help="relaxation terms of the shear model fit (default 1)")
+    analyze.add_argument("--no-model-fit", action="store_true",
+                         help="skip the ladder-wide model fit")
+    analyze.add_argument("--fixed-geometry", action="store_true",
+                         help="hold the contact search's touch gap and lower-sphere angle fixed "
+                              "in the model fit instead of refining them")
+    analyze.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from gelrig.analyze_run import analyze_run
+
+    result = analyze_run(args.run_dir, args.out, r1=args.r1, r2=args.r2, terms=args.terms,
+                         fit_model=not args.no_model_fit, fit_geometry=not args.fixed_geometry)
+    print(result.summary)
+    if result.problems:
+        print(f"gelrig: warning: {args.run_dir} is incomplete; analysed what is there "
+              f"({len(result.problems)} problem(s), listed above and in the report)",
+              file=sys.stderr)
+    return 0

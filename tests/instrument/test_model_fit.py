@@ -1,0 +1,114 @@
+"""The ladder-wide model fit recovers the parameters of synthetic recorded ladders.
+
+Tolerances (stated in docs/decisions/0030): on a noisy ladder made with the same contact
+model (2 overlaps x 3 speeds, C and AC), starting from a touch gap 12 um and a lower-sphere
+angle 0.7 mrad off (the contact search's typical error on the simulated rig) and from the
+moduli found by the linear start, G_e, G_1 within 2 %, tau within 3 %, mu within 2 %,
+the touch gap within 1 um and the angle within 0.05 mrad.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from instrument.contact import Material
+from instrument.errors import ConfigError
+from instrument.model_fit import FitSetup, Trajectory, fit_ladder, model_forces
+from instrument.shear_analysis import analyse_ladder
+from tests.instrument.test_shear_analysis import ARM, LOWER, MU, R1, R2, TOUCH, synth_ladder
+
+SETUP = FitSetup(R1, R2, ARM)
+
+
+@pytest.fixture(scope="module")
+def recorded():
+    cols, _, _ = synth_ladder(overlaps=(0.4e-3, 0.7e-3), speeds=(2.38e-5, 1.19e-4, 2.37e-4),
+                              seed=4)
+    analysis, _ = analyse_ladder(cols, ARM, travel=14e-3)
+    return cols, analysis
+
+
+@pytest.fixture(scope="module")
+def fitted(recorded):
+    cols, analysis = recorded
+    return fit_ladder(Trajectory.from_steps([cols]), analysis.results, SETUP,
+                      TOUCH + 12e-6, LOWER - 7e-4)
+
+
+def test_fit_recovers_the_parameters(fitted):
+    fit = fitted
+    assert fit.material.g_e == pytest.approx(4e3, rel=0.02)
+    assert fit.material.relax[0].g == pytest.approx(2e4, rel=0.02)
+    assert fit.material.relax[0].tau == pytest.approx(2000.0, rel=0.03)
+    assert fit.mu == pytest.approx(MU, rel=0.02)
+    assert fit.touch_gap == pytest.approx(TOUCH, abs=1e-6)
+    assert fit.lower_angle == pytest.approx(LOWER, abs=5e-5)
+    # the model explains the data down to the noise
+    assert fit.rms_h == pytest.approx(fit.noise_h, rel=0.2)
+    assert fit.rms_v == pytest.approx(fit.noise_v, rel=0.2)
+    assert fit.n_passes == 12
+
+
+def test_confidence_intervals_are_finite_and_bracket_the_values(fitted):
+    names = [e.name for e in fitted.estimates]
+    assert names == ["G_e", "G_1", "tau_1", "mu", "touch_gap", "lower_angle"]
+    for e in fitted.estimates:
+        assert 0 < e.stderr < math.inf
+        assert e.lo < e.value < e.hi
+    g_e = fitted.estimate("G_e")
+    assert g_e.stderr / g_e.value < 0.02
+    assert {row["parameter"] for row in fitted.rows()} == set(names)
+
+
+def test_fixed_geometry_uses_the_given_values(recorded):
+    cols, analysis = recorded
+    fit = fit_ladder(Trajectory.from_steps([cols]), analysis.results,
+                     FitSetup(R1, R2, ARM, fit_geometry=False), TOUCH, LOWER)
+    assert (fit.touch_gap, fit.lower_angle) == (TOUCH, LOWER)
+    assert [e.name for e in fit.estimates][-1] == "mu"
+    assert fit.material.g_e == pytest.approx(4e3, rel=0.02)
+    assert fit.mu == pytest.approx(MU, rel=0.02)
+
+
+def test_two_terms_fit_a_two_term_material():
+    truth = Material.of(3e3, [(1.5e4, 1500.0), (6e3, 60.0)])
+    cols, _, _ = synth_ladder(overlaps=(0.6e-3,), speeds=(2.38e-5, 1.19e-4, 2.37e-4),
+                              material=truth, seed=5)
+    analysis, _ = analyse_ladder(cols, ARM)
+    fit = fit_ladder(Trajectory.from_steps([cols]), analysis.results,
+                     FitSetup(R1, R2, ARM, terms=2), TOUCH, LOWER)
+    _, f_v = model_forces(Trajectory.from_steps([cols]), fit, FitSetup(R1, R2, ARM, terms=2))
+    moving = cols["direction"] != 0
+    assert np.sqrt(np.mean((f_v[moving] - cols["normal_force_N"][moving]) ** 2)) < 3e-5
+    assert fit.material.g_instant == pytest.approx(truth.g_instant, rel=0.03)
+    assert fit.material.g_e == pytest.approx(3e3, rel=0.1)
+    assert sorted(r.tau for r in fit.material.relax)[1] == pytest.approx(1500.0, rel=0.2)
+
+
+def test_history_of_earlier_steps_is_part_of_the_model():
+    """Contact made before the ladder (here: a deeper overlap, recorded as another step)
+    leaves history the model must run through; without it the fit cannot explain the data."""
+    cols, _, _ = synth_ladder(overlaps=(0.8e-3, 0.5e-3), speeds=(2.38e-5, 2.37e-4), seed=6)
+    earlier = cols["pass"] < 4
+    cols["pass"] = np.where(earlier, -1.0, cols["pass"])
+    split = int(np.flatnonzero(~earlier & (cols["pass"] >= 0))[0]) - 10
+    first = {k: v[:split] for k, v in cols.items()}
+    ladder = {k: v[split:] for k, v in cols.items()}
+    analysis, _ = analyse_ladder(ladder, ARM)
+    assert [r.index for r in analysis.results] == [4, 5, 6, 7]
+    with_history = fit_ladder(Trajectory.from_steps([ladder, first]), analysis.results, SETUP,
+                              TOUCH, LOWER)
+    assert with_history.material.g_e == pytest.approx(4e3, rel=0.02)
+    assert with_history.material.relax[0].tau == pytest.approx(2000.0, rel=0.03)
+    assert with_history.rms_v == pytest.approx(with_history.noise_v, rel=0.2)
+    without = fit_ladder(Trajectory.from_steps([ladder]), analysis.results, SETUP, TOUCH, LOWER)
+    assert without.rms_v > 3 * with_history.rms_v
+
+
+def test_missing_geometry_is_a_clear_error(recorded):
+    cols, analysis = recorded
+    with pytest.raises(ConfigError, match="touch gap"):
+        fit_ladder(Trajectory.from_steps([cols]), analysis.results, SETUP, math.nan, LOWER)
+    with pytest.raises(ConfigError, match="terms"):
+        FitSetup(R1, R2, ARM, terms=3)
