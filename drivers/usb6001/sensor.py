@@ -18,6 +18,7 @@ import nidaqmx
 import numpy as np
 from nidaqmx.constants import AcquisitionType, TerminalConfiguration
 from nidaqmx.stream_readers import AnalogSingleChannelReader
+from numpy.typing import ArrayLike
 
 from drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
 from drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
@@ -226,7 +227,14 @@ class Usb6001ForceSensor:
         if not self._running:
             raise InstrumentError(f"USB-6001 {self.config.device}: tare before start()")
         block = self.read_block(max(1, round(duration * self._rate)))
-        self._zero = float(np.mean(block.volts))
+        return self.zero_on(block.volts)
+
+    def zero_on(self, volts: ArrayLike) -> float:
+        """Zero on the mean of input volts already read; return the removed force (N)."""
+        v = np.asarray(volts, dtype=float)
+        if v.size == 0:
+            raise InstrumentError(f"USB-6001 {self.config.device}: tare needs samples")
+        self._zero = float(np.mean(v))
         return (self._zero - self.chain.offset) / self.chain.sensitivity
 
     def stop(self) -> None:

@@ -48,6 +48,7 @@ class ForceRecorder:
         self._polls_z: FloatArray = np.empty(0)
         self._last_f = math.nan
         self._last_t: float | None = None
+        self._last_volts: FloatArray = np.empty(0)
         self._recent: FloatArray = np.empty(0)  # the latest forces, for noise and trend
 
     def start(self) -> None:
@@ -114,11 +115,24 @@ class ForceRecorder:
             raise over
         return data
 
+    def tare(self, duration: float) -> float:
+        """Zero the force on ``duration`` s of samples, which are recorded like any others
+        (they carry the previous zero); returns the removed offset (N)."""
+        want = max(1, round(duration * self.rate))
+        volts: list[FloatArray] = []
+        got = 0
+        while got < want:
+            self.read(n_max=want - got)
+            volts.append(self._last_volts)
+            got += self._last_volts.size
+        return self.rig.force.zero_on(np.concatenate(volts))
+
     def _stamp(self, block: ForceBlock) -> dict[str, FloatArray]:
         self._poll()
         # Samples may be older than the previous poll when the loop lags (paced or real
         # time): interpolate over the recent poll history, not just the last interval.
         z = np.interp(block.t, self._polls_t, self._polls_z) if len(block) else np.empty(0)
+        self._last_volts = np.asarray(block.volts, dtype=float)
         if len(block):
             self._last_t = float(block.t[-1])
             self._recent = np.concatenate((self._recent, block.force))[-_RECENT:]

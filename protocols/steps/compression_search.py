@@ -77,7 +77,7 @@ class CompressionContactSearch(StepDefinition):
         stage.set_velocity(limits.fast_speed, limits.acceleration)
         stage.move_to(params["start"], wait=False)
         rec.until_stopped()
-        offset = rig.force.tare(params["tare_time"]) if params["tare_time"] > 0 else 0.0
+        offset = rec.tare(params["tare_time"]) if params["tare_time"] > 0 else 0.0
         stage.set_velocity(params["speed"], limits.acceleration)
         threshold = params["threshold"]
         estimates: list[float] = []

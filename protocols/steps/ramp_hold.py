@@ -89,7 +89,7 @@ class RampHold(StepDefinition):
         stage.move_to(touch - params["approach"], wait=False)
         rec.until_stopped()
         if params["tare_time"] > 0:  # clear of the sphere: zero the force here
-            rig.force.tare(params["tare_time"])
+            rec.tare(params["tare_time"])
         rec.clear()
         t_start = ctx.clock.now()
         stage.set_velocity(speed, limits.acceleration)
