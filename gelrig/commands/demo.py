@@ -41,9 +41,10 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     summary: dict[str, object] = {}
+    reports: dict[str, str] = {}
     if not args.no_runs:
         summary["runs"] = runs = _runs(out / "runs")
-        summary["reports"] = _analyse(runs)
+        summary["reports"] = reports = _analyse(runs)
     rng = np.random.default_rng(args.seed)
     print("\nModel reference (the paper's parameters):")
     model = out / "model"
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     summary["model"] = {"compression": _compression(model, rng), "shear": _shear(model)}
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"\nwrote runs, CSV, PNG and summary.json to {out.resolve()}")
-    for kind, report in dict(summary.get("reports") or {}).items():
+    for kind, report in reports.items():
         print(f"  {kind} report: {report}")
     return 0
 

@@ -1,0 +1,162 @@
+"""Manual control: stage home / jog / move to, load-cell tare (compression); rheometer gap,
+rotation at a speed, hold (shear). Disabled while a protocol runs; the window's Stop button
+(always enabled) stops everything.
+
+Each button emits a command: a label and a function of the rig that the session runs on the
+rig thread. Entries are in lab units (mm, mm/s, s) and converted to SI here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import (
+    QDoubleSpinBox,
+    QGridLayout,
+    QGroupBox,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from protocols.rig import CompressionRig, Rig, ShearRig
+
+Command = Callable[[Rig], object]
+
+
+def _spin(value: float, lo: float, hi: float, unit: str, decimals: int = 3,
+          step: float = 0.1) -> QDoubleSpinBox:
+    box = QDoubleSpinBox()
+    box.setRange(lo, hi)
+    box.setDecimals(decimals)
+    box.setSingleStep(step)
+    box.setValue(value)
+    box.setSuffix(f" {unit}")
+    return box
+
+
+def _compression(rig: Rig) -> CompressionRig:
+    if not isinstance(rig, CompressionRig):
+        raise TypeError("not a compression rig")
+    return rig
+
+
+def _shear(rig: Rig) -> ShearRig:
+    if not isinstance(rig, ShearRig):
+        raise TypeError("not a shear rig")
+    return rig
+
+
+class ManualPanel(QGroupBox):
+    """Buttons and entries for the instruments of one rig kind."""
+
+    command = Signal(str, object)  # what, Command
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__("Manual control", parent)
+        self.layout_ = QVBoxLayout(self)
+        self.body: QWidget | None = None
+        self.buttons: dict[str, QPushButton] = {}
+        self.entries: dict[str, QDoubleSpinBox] = {}
+        self.kind: str | None = None
+
+    def set_kind(self, kind: str | None) -> None:
+        if kind == self.kind:
+            return
+        self.kind = kind
+        if self.body is not None:
+            self.body.deleteLater()
+        self.buttons.clear()
+        self.entries.clear()
+        self.body = QWidget()
+        self.layout_.addWidget(self.body)
+        if kind == "compression":
+            self._build_compression(self.body)
+        elif kind == "shear":
+            self._build_shear(self.body)
+        else:
+            QVBoxLayout(self.body).addWidget(QLabel("connect a rig"))
+
+    def _button(self, key: str, text: str, what: str, make: Callable[[], Command]) -> QPushButton:
+        button = QPushButton(text)
+        button.clicked.connect(lambda: self.command.emit(what, make()))
+        self.buttons[key] = button
+        return button
+
+    def _build_compression(self, body: QWidget) -> None:
+        grid = QGridLayout(body)
+        e = self.entries
+        e["speed"] = _spin(0.5, 0.001, 2.3, "mm/s")
+        e["step"] = _spin(0.1, 0.001, 5.0, "mm", step=0.05)
+        e["target"] = _spin(0.0, 0.0, 25.0, "mm", decimals=4)
+        e["tare"] = _spin(1.0, 0.01, 60.0, "s", decimals=2)
+
+        def move(relative: float | None) -> Command:
+            speed = e["speed"].value() * 1e-3
+            target = e["target"].value() * 1e-3
+
+            def run(rig: Rig) -> None:
+                r = _compression(rig)
+                r.stage.set_velocity(speed, r.limits.acceleration)
+                if relative is None:
+                    r.stage.move_to(target, wait=False)
+                else:
+                    r.stage.move_by(relative, wait=False)
+            return run
+
+        grid.addWidget(QLabel("<b>Stage</b>"), 0, 0)
+        grid.addWidget(self._button("home", "Home", "stage home",
+                                    lambda: lambda rig: _compression(rig).stage.home(wait=False)),
+                       0, 1)
+        grid.addWidget(QLabel("speed"), 1, 0)
+        grid.addWidget(e["speed"], 1, 1, 1, 2)
+        grid.addWidget(QLabel("jog step"), 2, 0)
+        grid.addWidget(e["step"], 2, 1, 1, 2)
+        grid.addWidget(self._button("jog_minus", "Jog − (away)", "stage jog −",
+                                    lambda: move(-e["step"].value() * 1e-3)), 3, 1)
+        grid.addWidget(self._button("jog_plus", "Jog + (toward sphere)", "stage jog +",
+                                    lambda: move(e["step"].value() * 1e-3)), 3, 2)
+        grid.addWidget(QLabel("move to"), 4, 0)
+        grid.addWidget(e["target"], 4, 1)
+        grid.addWidget(self._button("move_to", "Move", "stage move to", lambda: move(None)), 4, 2)
+        grid.addWidget(QLabel("<b>Load cell</b>"), 5, 0)
+        grid.addWidget(e["tare"], 5, 1)
+
+        def tare() -> Command:
+            duration = e["tare"].value()
+            return lambda rig: _compression(rig).force.tare(duration)
+
+        grid.addWidget(self._button("tare", "Tare", "load-cell tare", tare), 5, 2)
+
+    def _build_shear(self, body: QWidget) -> None:
+        grid = QGridLayout(body)
+        e = self.entries
+        e["gap"] = _spin(8.0, 0.0, 50.0, "mm", decimals=3)
+        e["speed"] = _spin(0.5, -5.0, 5.0, "mm/s", decimals=4, step=0.05)
+
+        def set_gap() -> Command:
+            gap = e["gap"].value() * 1e-3
+            return lambda rig: _shear(rig).rheometer.set_gap(gap, wait=False)
+
+        def rotate() -> Command:
+            speed = e["speed"].value() * 1e-3
+            return lambda rig: _shear(rig).rheometer.rotate(speed)
+
+        grid.addWidget(QLabel("<b>Rheometer</b>"), 0, 0)
+        grid.addWidget(self._button("zero_gap", "Reference gap", "rheometer gap reference",
+                                    lambda: lambda rig: _shear(rig).rheometer.zero_gap()), 0, 1)
+        grid.addWidget(QLabel("gap"), 1, 0)
+        grid.addWidget(e["gap"], 1, 1)
+        grid.addWidget(self._button("set_gap", "Set gap", "rheometer gap", set_gap), 1, 2)
+        grid.addWidget(QLabel("speed at the arm (+ clockwise)"), 2, 0)
+        grid.addWidget(e["speed"], 2, 1)
+        grid.addWidget(self._button("rotate", "Rotate", "rheometer rotate", rotate), 2, 2)
+        grid.addWidget(self._button("hold", "Hold position", "rheometer hold",
+                                    lambda: lambda rig: _shear(rig).rheometer.hold()), 3, 1)
+
+    def set_enabled(self, enabled: bool) -> None:
+        """Manual commands only while connected and no protocol runs."""
+        for widget in (*self.buttons.values(), *self.entries.values()):
+            widget.setEnabled(enabled)

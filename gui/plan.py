@@ -1,0 +1,50 @@
+"""The dry run of a protocol before anything moves: steps, lab duration, limit checks.
+
+The same plans and checks as ``gelrig plan`` (each step kind's ``plan()``), as data the
+protocol panel shows and uses for the ETA and for enabling Run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from gui.fmt import lab_time
+from protocols.rig import CompressionLimits, ShearLimits
+from protocols.spec import ProtocolSpec
+
+
+@dataclass
+class PlanSummary:
+    durations: list[float]
+    travel: float
+    lines: list[str]
+    failed: list[str] = field(default_factory=list)
+
+    @property
+    def total(self) -> float:
+        return sum(self.durations)
+
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+def summarise(protocol: ProtocolSpec, limits: CompressionLimits | ShearLimits) -> PlanSummary:
+    durations: list[float] = []
+    travel = 0.0
+    lines = [f"{protocol.name}  ({protocol.rig} rig)"]
+    failed: list[str] = []
+    for i, step in enumerate(protocol.steps):
+        plan = step.definition.plan(step.params, limits)
+        durations.append(plan.duration)
+        travel += plan.travel
+        lines.append(f"{i}. {step.name} [{step.kind}]: ~{lab_time(plan.duration)} lab time, "
+                     f"travel up to {plan.travel * 1e3:.1f} mm")
+        lines.extend(f"   - {line}" for line in plan.lines)
+        for check in plan.checks:
+            lines.append(f"   {'ok  ' if check.ok else 'FAIL'} {check.name}: {check.message}")
+            if not check.ok:
+                failed.append(f"step {i} ({step.name}): {check.message}")
+    verdict = "all passed" if not failed else f"{len(failed)} FAILED"
+    lines.append(f"Total: ~{lab_time(sum(durations))} lab time, travel up to "
+                 f"{travel * 1e3:.1f} mm; limit checks {verdict}")
+    return PlanSummary(durations, travel, lines, failed)

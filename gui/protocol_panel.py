@@ -1,0 +1,215 @@
+"""Protocol panel: open a protocol file, edit it (validated as you type), see the dry run,
+run / pause / resume / abort, and follow the progress with a lab-time ETA."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import Signal
+from PySide6.QtGui import QFontDatabase
+from PySide6.QtWidgets import (
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPlainTextEdit,
+    QProgressBar,
+    QPushButton,
+    QScrollArea,
+    QVBoxLayout,
+    QWidget,
+)
+
+from gui.fmt import lab_time
+from gui.plan import PlanSummary, summarise
+from gui.protocol_form import ProtocolForm
+from protocols.events import Progress, RunState
+from protocols.rig import CompressionLimits, ShearLimits
+from protocols.spec import ProtocolSpec
+
+
+def eta(plan: PlanSummary, progress: Progress) -> tuple[float, float]:
+    """(overall fraction done, lab seconds left) from the plan and the newest progress."""
+    durations = plan.durations
+    i = min(progress.index, len(durations) - 1)
+    step = durations[i]
+    left = progress.remaining if progress.remaining > 0 else step * (1 - progress.fraction)
+    left += sum(durations[i + 1:])
+    total = plan.total
+    done = sum(durations[:i]) + progress.fraction * step
+    return (done / total if total > 0 else 0.0), left
+
+
+class ProtocolPanel(QGroupBox):
+    """The protocol to run and the controls of its run."""
+
+    open_clicked = Signal()
+    run_clicked = Signal()
+    pause_clicked = Signal()
+    resume_clicked = Signal()
+    abort_clicked = Signal()
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__("Protocol", parent)
+        layout = QVBoxLayout(self)
+        top = QHBoxLayout()
+        self.open_button = QPushButton("Open protocol…")
+        self.open_button.clicked.connect(self.open_clicked)
+        self.file_label = QLabel("no protocol")
+        top.addWidget(self.open_button)
+        top.addWidget(self.file_label, 1)
+        layout.addLayout(top)
+        self.form = ProtocolForm()
+        self.form.changed.connect(self._update)
+        scroll = QScrollArea()
+        scroll.setWidgetResizable(True)
+        scroll.setWidget(self.form)
+        layout.addWidget(scroll, 3)
+        self.plan_text = QPlainTextEdit()
+        self.plan_text.setReadOnly(True)
+        self.plan_text.setFont(QFontDatabase.systemFont(QFontDatabase.SystemFont.FixedFont))
+        self.plan_text.setPlaceholderText("dry run: steps, lab duration, limit checks")
+        layout.addWidget(QLabel("<b>Dry run</b>"))
+        layout.addWidget(self.plan_text, 2)
+        buttons = QHBoxLayout()
+        self.run_button = QPushButton("Run")
+        self.pause_button = QPushButton("Pause")
+        self.resume_button = QPushButton("Resume")
+        self.abort_button = QPushButton("Abort")
+        for button, signal in ((self.run_button, self.run_clicked),
+                               (self.pause_button, self.pause_clicked),
+                               (self.resume_button, self.resume_clicked),
+                               (self.abort_button, self.abort_clicked)):
+            button.clicked.connect(signal)
+            buttons.addWidget(button)
+        layout.addLayout(buttons)
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1000)
+        self.progress.setFormat("%p %")
+        self.status = QLabel("idle")
+        self.status.setWordWrap(True)
+        layout.addWidget(self.progress)
+        layout.addWidget(self.status)
+        self.kind: str | None = None
+        self.limits: CompressionLimits | ShearLimits | None = None
+        self.connected = False
+        self.pace = 1.0
+        self.real_time = False
+        self.state = RunState.IDLE
+        self.pause_requested = False
+        self.plan: PlanSummary | None = None
+        self.why_not = "open a protocol file"
+        self._update()
+
+    # ---- inputs -------------------------------------------------------------------------
+    @property
+    def spec(self) -> ProtocolSpec | None:
+        return self.form.spec
+
+    def load_file(self, path: Path) -> None:
+        """Read a protocol file into the form (TOML errors shown as the form's message)."""
+        try:
+            table: dict[str, Any] = tomllib.loads(path.read_text())
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            self.form.set_table({}, str(path))
+            self.form.general.setText(f"{path}: cannot be read as TOML ({exc})")
+            return
+        self.set_table(table, str(path))
+
+    def set_table(self, table: dict[str, Any], source: str) -> None:
+        self.file_label.setText(source)
+        self.form.set_table(table, source)
+
+    def set_rig(self, kind: str | None, limits: CompressionLimits | ShearLimits | None,
+                connected: bool) -> None:
+        self.kind, self.limits, self.connected = kind, limits, connected
+        self._update()
+
+    def set_pace(self, pace: float, real_time: bool) -> None:
+        self.pace, self.real_time = pace, real_time
+
+    def set_state(self, state: RunState, reason: str = "") -> None:
+        self.state = state
+        if state != RunState.RUNNING:
+            self.pause_requested = False
+        if state == RunState.PAUSED:
+            self.status.setText("paused at a checkpoint (nothing moves); Resume or Abort")
+        elif state.finished:
+            self.status.setText(f"run {state.value}" + (f": {reason}" if reason else ""))
+            if state == RunState.COMPLETED:
+                self.progress.setValue(1000)
+        elif state == RunState.RUNNING and reason == "resumed":
+            self.status.setText("running")
+        self._update()
+
+    def request_pause(self) -> None:
+        self.pause_requested = True
+        self.status.setText("pause requested: the run pauses at the next checkpoint")
+        self._update()
+
+    def cancel_pause(self) -> None:
+        self.pause_requested = False
+        self._update()
+
+    def show_progress(self, progress: Progress, step_name: str = "") -> None:
+        if self.plan is None:
+            return
+        fraction, left = eta(self.plan, progress)
+        self.progress.setValue(round(1000 * min(max(fraction, 0.0), 1.0)))
+        if self.real_time:
+            wall = ""
+        elif math.isinf(self.pace):
+            wall = " (as fast as possible)"
+        else:
+            wall = f" (≈ {lab_time(left / self.pace)} at {self.pace:g}x)"
+        what = f"step {progress.index + 1}/{len(self.plan.durations)}"
+        if step_name:
+            what += f" {step_name}"
+        if progress.message:
+            what += f": {progress.message}"
+        paused = "; pause requested" if self.pause_requested else ""
+        self.status.setText(f"{what} — ETA {lab_time(left)} lab time{wall}{paused}")
+
+    # ---- state ------------------------------------------------------------------------
+    @property
+    def active(self) -> bool:
+        return self.state in (RunState.RUNNING, RunState.PAUSED, RunState.ABORTING)
+
+    def _update(self) -> None:
+        spec = self.spec
+        self.plan = None
+        if spec is not None and self.limits is not None:
+            self.plan = summarise(spec, self.limits)
+            self.plan_text.setPlainText(self.plan.text())
+        elif spec is not None:
+            self.plan_text.setPlainText("connect a rig for the dry run (its limits)")
+        else:
+            self.plan_text.setPlainText("\n".join(self.form.errors))
+        self.why_not = self._why_not(spec)
+        self.run_button.setEnabled(not self.why_not)
+        self.run_button.setToolTip(self.why_not or "run this protocol on the connected rig")
+        self.pause_button.setEnabled(self.state == RunState.RUNNING and not self.pause_requested)
+        self.resume_button.setEnabled(self.state == RunState.PAUSED or self.pause_requested)
+        self.abort_button.setEnabled(self.active)
+        self.open_button.setEnabled(not self.active)
+        self.form.setEnabled(not self.active)
+        if not self.active and self.why_not and self.state == RunState.IDLE:
+            self.status.setText(f"not ready: {self.why_not}")
+        elif not self.active and self.state == RunState.IDLE:
+            self.status.setText("ready")
+
+    def _why_not(self, spec: ProtocolSpec | None) -> str:
+        if self.active:
+            return "a run is going"
+        if spec is None:
+            return "fix the protocol: " + "; ".join(self.form.errors) if self.form.errors \
+                else "open a protocol file"
+        if not self.connected:
+            return "connect the rig"
+        if spec.rig != self.kind:
+            return f"this protocol runs on a {spec.rig} rig; the rig is a {self.kind} rig"
+        if self.plan is not None and self.plan.failed:
+            return f"limit check failed: {self.plan.failed[0]}"
+        return ""

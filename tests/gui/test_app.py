@@ -1,0 +1,323 @@
+"""The application on the built-in simulated rigs, driven through its buttons (pytest-qt,
+offscreen): a short compression run whose plots receive the data, pause / resume / abort,
+validation as you type, an injected fault, manual control, a mid-run screenshot, closing
+mid-run, and the shear rig's per-pass plots."""
+
+import dataclasses
+import json
+import math
+import time
+
+import h5py
+import numpy as np
+import pytest
+from PySide6.QtGui import QColor, QImage
+from PySide6.QtWidgets import QMessageBox
+
+from gelrig.commands.gui import make_services
+from gelrig.rigfile import default_rig
+from gui.binding import binding_problem
+from gui.mainwindow import MainWindow
+from gui.plots import CompressionPlots, ShearPlots, colour
+from protocols.events import RunState
+from simulators.kdc101.protocol_kdc101sim import lookup
+
+BINDING = binding_problem()
+PACES = {1.0: 0, 10.0: 1, 100.0: 2, math.inf: 3}
+
+
+def short_compression(hold="20 s", confirm=1):
+    """Contact search from 5 mm (the sphere is at 6.2 mm) and a 1 % ramp with a short hold."""
+    return {"protocol": {"name": "short compression", "rig": "compression"}, "step": [
+        {"kind": "compression_contact_search", "start": "5 mm", "confirm": confirm,
+         "tare_time": "0.2 s"},
+        {"kind": "ramp_hold", "strain": 0.01, "strain_rate": "0.01 /s", "hold": hold,
+         "rate": "1000 Hz", "retract": "0.5 mm", "terms": 1}]}
+
+
+@pytest.fixture
+def open_window(qtbot, tmp_path):
+    """open_window(pace, rig) -> a MainWindow connected to a built-in simulated rig; the rigs
+    the factory built are kept in ``window.built`` (to reach their simulators)."""
+    if BINDING:
+        pytest.fail(BINDING)
+    windows = []
+
+    def make(pace=math.inf, rig="compression"):
+        built = []
+        base = make_services(default_rig(rig), pace, tmp_path / "runs")
+
+        def build(spec, clock):
+            built.append(base.build_rig(spec, clock))
+            return built[-1]
+
+        window = MainWindow(dataclasses.replace(base, build_rig=build))
+        window.built = built
+        windows.append(window)
+        window.show()
+        window.start()
+        qtbot.waitUntil(lambda: window.session.rig is not None, timeout=20_000)
+        return window
+
+    yield make
+    for window in windows:
+        if window.session.running:
+            window.session.abort("test teardown")
+            qtbot.waitUntil(lambda w=window: not w.session.running, timeout=20_000)
+        window.close()
+
+
+def stage_sim(window):
+    address = window.session.rig.identities["stage"]["address"]
+    return lookup(address.split("://", 1)[1])
+
+
+def wait_finished(qtbot, window, timeout=30_000):
+    qtbot.waitUntil(lambda: not window.session.running and window.protocol.state.finished,
+                    timeout=timeout)
+    return window.protocol.state
+
+
+def samples_in(window, step):
+    steps = dict((s.index, cols) for s, cols in window.session.data.steps())
+    return steps[step]["t_s"].size if step in steps else 0
+
+
+def test_short_compression_run_fills_the_plots_and_opens_as_a_finished_run(qtbot,
+                                                                           open_window):
+    window = open_window(math.inf)
+    assert window.instruments.values["position_m"] is not None
+    window.protocol.set_table(short_compression(), "<test>")
+    assert window.protocol.run_button.isEnabled(), window.protocol.why_not
+    assert "limit checks all passed" in window.protocol.plan_text.toPlainText()
+    window.protocol.run_button.click()
+    assert wait_finished(qtbot, window) == RunState.COMPLETED
+
+    plots = window.plots
+    assert isinstance(plots, CompressionPlots)
+    n = window.session.data.samples()
+    assert n > 20_000  # the 20 s hold at 1 kHz and the search
+    assert plots.points() == n
+    steps = {s.index: cols for s, cols in window.session.data.steps()}
+    hold = steps[1]
+    by_name = {c.name(): c for c in plots.force_t.listDataItems()}
+    curve = by_name["1. ramp and hold"]
+    # Full view: a peak decimation that ends at the newest sample and keeps the extremes.
+    assert 1000 < curve.xData.size <= hold["t_s"].size
+    assert curve.xData[-1] == hold["t_s"][-1]
+    assert curve.yData.max() == hold["force_N"].max()
+    assert curve.yData.min() == hold["force_N"].min()
+    z_curve = {c.name(): c for c in plots.force_z.listDataItems()}["1. ramp and hold"]
+    assert z_curve.xData.max() == hold["position_m"].max()
+    # Zoomed in: the samples themselves.
+    plots.force_t.getPlotItem().getViewBox().setXRange(hold["t_s"][100], hold["t_s"][200])
+    qtbot.waitUntil(lambda: curve.xData.size == hold["t_s"].size, timeout=2_000)
+    np.testing.assert_array_equal(curve.yData, hold["force_N"])
+    plots.force_t.getPlotItem().getViewBox().enableAutoRange()
+    qtbot.waitUntil(lambda: curve.xData.size < hold["t_s"].size, timeout=2_000)
+    meta = json.loads((window.session.run_path / "run.json").read_text())
+    assert meta["status"] == "completed" and meta["clock"] == "paced:inf"
+    assert sum(s["samples"] for s in meta["steps"]) == n  # the plots saw what was recorded
+    (_s, cols), = [(s, c) for s, c in window.session.data.steps() if s.index == 1]
+    with h5py.File(window.session.run_path / meta["steps"][1]["file"]) as f:
+        np.testing.assert_array_equal(f["force_N"][:], cols["force_N"])
+    assert window.protocol.progress.value() == 1000
+    assert "completed" in window.log.toPlainText()
+
+    viewer = window.open_run(window.session.run_path)
+    assert viewer is not None
+    assert viewer.plots.points() == n
+    shown = {c.name(): c for c in viewer.plots.force_t.listDataItems()}
+    assert shown["1. ramp and hold"].xData[-1] == hold["t_s"][-1]
+    assert "first_touch" in viewer.stored  # what run.json holds, shown at once
+    qtbot.waitUntil(lambda: viewer.analysed, timeout=30_000)  # then gelrig analyze's summary
+    summary = viewer.summary.toPlainText()
+    assert "Hold, step 1" in summary and "report:" in summary, summary
+    viewer.close()
+
+
+def test_pause_resume_and_abort_from_the_buttons(qtbot, open_window):
+    window = open_window(10.0)
+    panel = window.protocol
+    panel.set_table(short_compression(hold="300 s"), "<test>")
+    panel.run_button.click()
+    panel.pause_button.click()  # takes effect at the first checkpoint
+    qtbot.waitUntil(lambda: panel.state == RunState.PAUSED, timeout=20_000)
+    assert panel.resume_button.isEnabled() and not panel.pause_button.isEnabled()
+    assert not window.manual.buttons["home"].isEnabled()  # no manual moves during a run
+    assert window.stop_button.isEnabled()
+    sim, clock = stage_sim(window), window.session.clock
+    n = window.session.data.samples()
+    qtbot.wait(300)
+    assert window.session.data.samples() == n  # nothing acquired or moved while paused
+    assert sim.velocity_at(clock.now()) == 0.0
+
+    panel.resume_button.click()
+    qtbot.waitUntil(lambda: panel.state == RunState.RUNNING, timeout=5_000)
+    window.pace_box.setCurrentIndex(PACES[100.0])
+    qtbot.waitUntil(lambda: samples_in(window, 1) > 1000, timeout=30_000)
+    panel.abort_button.click()
+    assert wait_finished(qtbot, window) == RunState.ABORTED
+    assert sim.velocity_at(clock.now()) == 0.0
+    meta = json.loads((window.session.run_path / "run.json").read_text())
+    assert meta["status"] == "aborted"
+    assert meta["steps"][1]["status"] == "aborted" and meta["steps"][1]["samples"] > 1000
+    assert window.manual.buttons["home"].isEnabled()  # manual control is back
+
+
+def test_an_invalid_parameter_shows_its_message_and_disables_run(qtbot, open_window):
+    window = open_window(math.inf)
+    panel = window.protocol
+    panel.set_table(short_compression(), "<test>")
+    assert panel.run_button.isEnabled()
+    entry = panel.form.entry(0, "speed")
+    entry.edit.clear()
+    qtbot.keyClicks(entry.edit, "5 mm/s")  # over the 2.3 mm/s the step allows
+    assert not panel.run_button.isEnabled()
+    qtbot.waitUntil(entry.error.isVisible, timeout=2_000)  # beside the field
+    assert entry.error.text() == "allowed: a number in (0, 0.0023] m/s"
+    entry.edit.clear()
+    qtbot.keyClicks(entry.edit, "0.3 mm")  # wrong dimension
+    assert not panel.run_button.isEnabled() and "m/s" in entry.error.text()
+    entry.edit.clear()
+    qtbot.keyClicks(entry.edit, "0.3 mm/s")
+    assert panel.run_button.isEnabled() and entry.error.isHidden()
+    assert panel.spec.steps[0].params["speed"] == pytest.approx(0.3e-3)
+    strain = panel.form.entry(1, "strain")
+    strain.edit.setText("0.2")  # valid alone, but 3.7 mm deep is past the 2.5 mm overlap limit
+    assert not panel.run_button.isEnabled()
+    assert "limit check failed" in panel.why_not and "FAIL" in panel.plan_text.toPlainText()
+
+
+def test_a_fault_in_the_stage_shows_the_message_and_stops_motion(qtbot, open_window):
+    window = open_window(10.0)
+    window.protocol.set_table(short_compression(hold="300 s"), "<test>")
+    window.protocol.run_button.click()
+    sim, clock = stage_sim(window), window.session.clock
+    qtbot.waitUntil(lambda: samples_in(window, 0) > 20 and sim.velocity_at(clock.now()) != 0,
+                    timeout=20_000)
+    sim.mute()  # the controller stops answering (it still obeys commands)
+    assert wait_finished(qtbot, window) == RunState.FAILED
+    box = window.last_message
+    assert box is not None and box.isVisible()
+    assert "InstrumentTimeout" in box.text() and "motion was stopped" in box.text()
+    assert window.banner.state == "tripped" and "fault" in window.banner.text()
+    assert sim.velocity_at(clock.now()) == 0.0
+    t = clock.now()
+    qtbot.wait(200)
+    assert sim.position_at(clock.now()) == sim.position_at(t)  # and it stays stopped
+    meta = json.loads((window.session.run_path / "run.json").read_text())
+    assert meta["status"] == "failed" and meta["faults"]
+
+
+def test_manual_control_homes_moves_and_stops(qtbot, open_window):
+    window = open_window(10.0)
+    sim, clock = stage_sim(window), window.session.clock
+    manual = window.manual
+    manual.buttons["home"].click()
+    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
+    manual.entries["speed"].setValue(2.0)
+    manual.entries["target"].setValue(0.2)
+    manual.buttons["move_to"].click()
+    qtbot.waitUntil(lambda: window.instruments.values["position_m"].text() == "200 µm",
+                    timeout=10_000)
+    manual.entries["speed"].setValue(0.5)
+    manual.entries["target"].setValue(10.0)
+    manual.buttons["move_to"].click()
+    qtbot.waitUntil(lambda: sim.velocity_at(clock.now()) > 0, timeout=5_000)
+    window.stop_button.click()
+    qtbot.waitUntil(lambda: sim.velocity_at(clock.now()) == 0.0, timeout=5_000)
+    assert sim.position_at(clock.now()) < 5e-3
+    manual.buttons["tare"].click()
+    qtbot.waitUntil(lambda: "load-cell tare" in window.log.toPlainText(), timeout=5_000)
+
+
+def test_screenshot_of_the_main_window_mid_run(qtbot, open_window, tmp_path):
+    window = open_window(100.0)
+    window.protocol.set_table(short_compression(hold="300 s", confirm=0), "<test>")
+    window.protocol.run_button.click()
+    qtbot.waitUntil(lambda: samples_in(window, 1) > 3000, timeout=30_000)
+
+    def hold_drawn():  # the plot timer has drawn the hold curve (not merely buffered it)
+        curve = {c.name(): c for c in window.plots.force_t.listDataItems()}.get(
+            "1. ramp and hold")
+        return curve is not None and curve.xData is not None and curve.xData.size > 1000
+
+    qtbot.waitUntil(hold_drawn, timeout=10_000)
+    qtbot.wait(100)
+    assert window.session.running
+    path = tmp_path / "main-window-mid-run.png"
+    assert window.grab().save(str(path))
+    image = QImage(str(path))
+    assert image.width() >= 1000 and image.height() >= 700
+    plot = window.plots.plots[0]
+    corner = plot.mapTo(window, plot.rect().topLeft())
+    region = image.copy(corner.x(), corner.y(), plot.width(), plot.height())
+    region = region.convertToFormat(QImage.Format.Format_RGB32)
+    pixels = np.frombuffer(region.constBits(), np.uint32)[: region.width() * region.height()]
+    assert np.unique(pixels).size > 5  # axes, text and curves: not a blank or uniform plot
+    hold_colour = QColor(colour(1)).rgb()  # the ramp-and-hold curve is drawn
+    assert np.count_nonzero(pixels == np.uint32(hold_colour)) > 100
+
+
+def test_closing_mid_run_asks_then_aborts_and_keeps_the_data(qtbot, open_window, monkeypatch):
+    window = open_window(100.0)
+    window.protocol.set_table(short_compression(hold="300 s", confirm=0), "<test>")
+    window.protocol.run_button.click()
+    qtbot.waitUntil(lambda: samples_in(window, 1) > 1000, timeout=30_000)
+    sim, clock = stage_sim(window), window.session.clock
+    asked = []
+
+    def answer(reply):
+        def question(*args, **kwargs):
+            asked.append(args[2])
+            return reply
+        return question
+
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    assert not window.close()
+    assert window.session.running and window.isVisible()
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    window.close()
+    qtbot.waitUntil(lambda: not window.isVisible(), timeout=20_000)
+    assert len(asked) == 2 and "kept" in asked[0]
+    assert window.session.rig is None  # closed, after the run ended
+    assert sim.velocity_at(clock.now()) == 0.0
+    meta = json.loads((window.session.run_path / "run.json").read_text())
+    assert meta["status"] == "aborted" and "closed" in meta["reason"]
+    with h5py.File(window.session.run_path / meta["steps"][1]["file"]) as f:
+        assert f["force_N"].size == meta["steps"][1]["samples"] > 1000
+
+
+def test_shear_passes_are_overlaid_by_speed_and_direction(qtbot, open_window):
+    window = open_window(math.inf, rig="shear")
+    assert isinstance(window.plots, ShearPlots)
+    window.protocol.set_table({"protocol": {"name": "ladder", "rig": "shear"}, "step": [
+        {"kind": "speed_ladder", "overlaps": 1, "first_overlap": "0.4 mm",
+         "speeds": ["1e-4 m/s", "2e-4 m/s"], "travel": "4 mm", "wait": "1 s",
+         "interval": "0.05 s", "read_period": "0.5 s", "touch_gap": "3 mm",
+         "centre_angle": 0.8}]}, "<test>")
+    assert window.protocol.run_button.isEnabled(), window.protocol.why_not
+    window.protocol.run_button.click()
+    assert wait_finished(qtbot, window) == RunState.COMPLETED
+    plots = window.plots
+    assert plots.pass_count() == 4  # 2 speeds x (clockwise, back)
+    curves = plots.f_h.listDataItems()
+    assert len(curves) == 4 and all(c.xData.size > 10 for c in curves)
+    styles = {(c.opts["pen"].color().name(), c.opts["pen"].style()) for c in curves}
+    assert len(styles) == 4  # colour: speed; line style: direction
+    legend = [label.text for _item, label in plots.f_h.getPlotItem().legend.items]
+    assert sorted(legend) == ["0.0001 m/s ccw", "0.0001 m/s cw", "0.0002 m/s ccw",
+                              "0.0002 m/s cw"]
+    peak = max(float(np.max(c.yData)) for c in plots.f_v.listDataItems())
+    assert peak > 0.0  # the spheres pushed each other apart during the passes
+
+
+def test_readouts_follow_the_rig_and_time_runs_at_max_pace_when_idle(qtbot, open_window):
+    window = open_window(math.inf)
+    clock = window.session.clock
+    t0 = clock.now()
+    qtbot.waitUntil(lambda: window.instruments.values["force_N"].text() != "-", timeout=5_000)
+    time.sleep(0.3)
+    qtbot.waitUntil(lambda: clock.now() > t0 + 0.2, timeout=5_000)
+    assert "force" in window.banner.text() and "2 N" in window.banner.text()
