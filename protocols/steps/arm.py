@@ -55,33 +55,38 @@ class ArmRecorder:
         self.ctx.emit(data)
         return data
 
+    def _watched(self, extra: dict[str, float] | None = None) -> list[tuple[str, float]]:
+        """(column, level) pairs to watch: the interlocks and any extra levels (thresholds)."""
+        levels = [(il.column, il.limit) for il in self.ctx.interlocks]
+        return levels + list((extra or {}).items())
+
     def _update_trend(self, data: dict[str, FloatArray]) -> None:
         t = data["t_s"]
-        for il in self.ctx.interlocks:
-            v = np.abs(data.get(il.column, np.empty(0)))
+        for column in {c for c, _ in self._watched({"torque_Nm": 0.0})}:
+            v = np.abs(data.get(column, np.empty(0)))
             if v.size == 0:
                 continue
-            prev = self._trend.get(il.column)
+            prev = self._trend.get(column)
             if v.size >= 2 and t[-1] > t[0]:
                 rate = float(v[-1] - v[0]) / float(t[-1] - t[0])
             elif prev is not None:
                 rate = (float(v[-1]) - prev[0]) / max(self.interval, 1e-9)
             else:
                 rate = 0.0
-            self._trend[il.column] = (float(v[-1]), rate)
+            self._trend[column] = (float(v[-1]), rate)
 
-    def next_read(self) -> float:
+    def next_read(self, watch: dict[str, float] | None = None) -> float:
         """Lab time to the next read: the read period, shortened to one stream interval when
-        a watched quantity could reach its interlock limit before then (so a trip is seen
-        within one sample)."""
-        wait = self.read_period
-        for il in self.ctx.interlocks:
-            last, rate = self._trend.get(il.column, (0.0, 0.0))
-            room = il.limit - last
+        a watched quantity (an interlock's column, or an extra level such as a search
+        threshold) could reach its level before then, so a crossing is seen within one
+        sample."""
+        for column, level in self._watched(watch):
+            last, rate = self._trend.get(column, (0.0, 0.0))
+            room = level - last
             if room <= 0 or (rate > 0 and room / rate < 2 * self.read_period) \
-                    or last > 0.5 * il.limit:
+                    or last > 0.5 * level:
                 return self.interval
-        return wait
+        return self.read_period
 
     def poll(self) -> dict[str, FloatArray] | None:
         self.ctx.tick()
@@ -117,9 +122,8 @@ class ArmRecorder:
                 remaining = (angle - now_angle) * direction * self.arm
                 if remaining <= 0:
                     break
-                step = min(remaining / abs(speed), self.next_read())
-                if stop_above is not None:
-                    step = min(step, self.read_period)
+                watch = {"torque_Nm": stop_above} if stop_above is not None else None
+                step = min(remaining / abs(speed), self.next_read(watch))
                 clock.sleep(max(step, self.interval))
         finally:
             self.rheo.stop()

@@ -80,7 +80,7 @@ class ShearContactSearch(StepDefinition):
             Interlock("torque", "torque_Nm", rig.limits.max_torque, "N*m"),
             Interlock("normal force", "normal_force_N", rig.limits.max_normal_force, "N"),
         )
-        rec = ArmRecorder(ctx, params["interval"], read_period=params["interval"])
+        rec = ArmRecorder(ctx, params["interval"], read_period=max(params["interval"], 0.5))
         half = params["sweep"] / 2 / arm
         ref = params["reference_angle"]
         lo_angle, hi_angle = ref - half, ref + half
