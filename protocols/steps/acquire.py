@@ -167,7 +167,7 @@ class ForceRecorder:
             self.read()
 
     def dwell(self, duration: float, progress: bool = False, label: str = "",
-              block_time: float = 2.0) -> None:
+              block_time: float = 4.0) -> None:
         """Keep reading for ``duration`` seconds of clock time, in blocks of up to
         ``block_time`` (nothing moves, so blocks can be long; they still shrink near a limit)."""
         clock = self.ctx.clock
