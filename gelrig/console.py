@@ -3,12 +3,12 @@ event subscriber, and the lines a scientist wants to see when states change."""
 
 from __future__ import annotations
 
-import math
 import threading
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn
 
+from instrument.units import lab_time
 from protocols.events import (
     Event,
     Fault,
@@ -20,18 +20,6 @@ from protocols.events import (
 from protocols.events import (
     Progress as ProgressEvent,
 )
-
-
-def lab_time(seconds: float) -> str:
-    """'1 h 02 min', '3 min 20 s', '12.5 s'."""
-    if not math.isfinite(seconds):
-        return "?"
-    seconds = max(seconds, 0.0)
-    if seconds >= 3600:
-        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
-    if seconds >= 60:
-        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
-    return f"{seconds:.1f} s"
 
 
 def _values(values: dict[str, float]) -> str:

@@ -9,18 +9,6 @@ _PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, 
              (1e-9, "n"))
 
 
-def lab_time(seconds: float) -> str:
-    """'1 h 02 min', '3 min 20 s', '12.5 s'; '?' when unknown."""
-    if not math.isfinite(seconds):
-        return "?"
-    seconds = max(seconds, 0.0)
-    if seconds >= 3600:
-        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
-    if seconds >= 60:
-        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
-    return f"{seconds:.1f} s"
-
-
 def quantity(value: float, unit: str, digits: int = 4) -> str:
     """``0.0062, 'm'`` -> '6.2 mm'; units that a prefix would garble ('1/s', '') stay plain."""
     if not math.isfinite(value):

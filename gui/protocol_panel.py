@@ -22,10 +22,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gui.fmt import lab_time
-from gui.plan import PlanSummary, summarise
 from gui.protocol_form import ProtocolForm
+from instrument.units import lab_time
 from protocols.events import Progress, RunState
+from protocols.plan import PlanSummary, dry_run
 from protocols.rig import CompressionLimits, ShearLimits
 from protocols.spec import ProtocolSpec
 
@@ -181,7 +181,7 @@ class ProtocolPanel(QGroupBox):
         spec = self.spec
         self.plan = None
         if spec is not None and self.limits is not None:
-            self.plan = summarise(spec, self.limits)
+            self.plan = dry_run(spec, self.limits)
             self.plan_text.setPlainText(self.plan.text())
         elif spec is not None:
             self.plan_text.setPlainText("connect a rig for the dry run (its limits)")

@@ -59,3 +59,15 @@ def positive(value: float, field: str, unit: str, source: str | None = None) -> 
     if not value > 0:
         raise ConfigError(field, value, f"must be > 0 {unit}".rstrip(), source)
     return value
+
+
+def lab_time(seconds: float) -> str:
+    """A duration for people: '1 h 02 min', '3 min 20 s', '12.5 s'; '?' when unknown."""
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = max(seconds, 0.0)
+    if seconds >= 3600:
+        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+    if seconds >= 60:
+        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+    return f"{seconds:.1f} s"

@@ -7,13 +7,13 @@ import json
 from pathlib import Path
 from typing import Any
 
-from gelrig.console import lab_time
 from gelrig.rigfile import RigSpec, default_rig, load_rig, parse_rig
 from instrument.clock import clock_from_spec
 from instrument.csvio import write_columns
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory, read_step
 from protocols.events import RunState
+from protocols.plan import dry_run
 from protocols.spec import ProtocolSpec, load_protocol, paper_protocol, parse_protocol
 
 EXIT = {RunState.COMPLETED: 0, RunState.FAILED: 1, RunState.ABORTED: 3}
@@ -68,23 +68,10 @@ def print_plan(protocol: ProtocolSpec, rig: RigSpec) -> list[str]:
     """Print the plan; returns the messages of failed limit checks."""
     print(f"Protocol: {protocol.name}  ({protocol.source})")
     print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
-    total = travel = 0.0
-    failed = []
-    for i, step in enumerate(protocol.steps):
-        plan = step.definition.plan(step.params, rig.limits)
-        total += plan.duration
-        travel += plan.travel
-        print(f"\n{i}. {step.name} [{step.kind}]: ~{lab_time(plan.duration)} lab time, "
-              f"travel up to {plan.travel * 1e3:.1f} mm")
-        for line in plan.lines:
-            print(f"   - {line}")
-        for check in plan.checks:
-            print(f"   {'ok  ' if check.ok else 'FAIL'} {check.name}: {check.message}")
-            if not check.ok:
-                failed.append(f"step {i} ({step.name}): {check.message}")
-    print(f"\nTotal: ~{lab_time(total)} lab time, travel up to {travel * 1e3:.1f} mm; "
-          f"limit checks {'all passed' if not failed else f'{len(failed)} FAILED'}")
-    return failed
+    summary = dry_run(protocol, rig.limits)
+    for line in summary.lines[1:]:  # the first repeats the protocol's name
+        print(f"\n{line}" if line[:1].isdigit() or line.startswith("Total") else line)
+    return summary.failed
 
 
 def cmd_plan(args: argparse.Namespace) -> int:

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from gui.decimate import PeakDecimator
-from gui.fmt import entry_text, entry_value, lab_time, quantity
-from gui.plan import summarise
+from gui.fmt import entry_text, entry_value, quantity
 from gui.rundata import Columns, RunData
+from instrument.units import lab_time
 from protocols.events import Progress
+from protocols.plan import dry_run
 from protocols.rig import CompressionLimits
 from protocols.spec import parse_protocol
 
@@ -82,18 +83,18 @@ def test_peak_decimator_bounds_points_and_keeps_every_extreme():
 
 
 def test_plan_gives_durations_and_fails_checks_over_the_limits():
-    plan = summarise(protocol(), CompressionLimits())
+    plan = dry_run(protocol(), CompressionLimits())
     assert len(plan.durations) == 2 and not plan.failed
     assert plan.durations[1] > 20.0
     assert "limit checks all passed" in plan.text()
-    deep = summarise(protocol(strain=0.2), CompressionLimits())  # 3.7 mm > 2.5 mm overlap
+    deep = dry_run(protocol(strain=0.2), CompressionLimits())  # 3.7 mm > 2.5 mm overlap
     assert deep.failed and "overlap" in deep.failed[0]
 
 
 def test_eta_adds_later_steps_to_what_is_left_of_this_one():
     from gui.protocol_panel import eta
 
-    plan = summarise(protocol(hold="100 s"), CompressionLimits())
+    plan = dry_run(protocol(hold="100 s"), CompressionLimits())
     d0, d1 = plan.durations
     fraction, left = eta(plan, Progress(0.0, 1, 0.5, 50.0, 40.0, "hold"))
     assert left == pytest.approx(40.0)

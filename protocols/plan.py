@@ -1,20 +1,22 @@
-"""The dry run of a protocol before anything moves: steps, lab duration, limit checks.
+"""The dry run of a protocol before anything moves: steps, lab duration, travel, limit checks.
 
-The same plans and checks as ``gelrig plan`` (each step kind's ``plan()``), as data the
-protocol panel shows and uses for the ETA and for enabling Run.
+Each step kind's ``plan()`` summed up as data: ``gelrig plan`` prints it, the GUI's protocol
+panel shows it and uses it for the ETA and for enabling Run.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from gui.fmt import lab_time
+from instrument.units import lab_time
 from protocols.rig import CompressionLimits, ShearLimits
 from protocols.spec import ProtocolSpec
 
 
 @dataclass
 class PlanSummary:
+    """Per-step lab durations (s), total travel (m), the printable lines, failed checks."""
+
     durations: list[float]
     travel: float
     lines: list[str]
@@ -28,7 +30,8 @@ class PlanSummary:
         return "\n".join(self.lines)
 
 
-def summarise(protocol: ProtocolSpec, limits: CompressionLimits | ShearLimits) -> PlanSummary:
+def dry_run(protocol: ProtocolSpec, limits: CompressionLimits | ShearLimits) -> PlanSummary:
+    """Plan every step against the rig's limits."""
     durations: list[float] = []
     travel = 0.0
     lines = [f"{protocol.name}  ({protocol.rig} rig)"]
