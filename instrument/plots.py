@@ -13,11 +13,12 @@ from instrument.analysis import RelaxationFit
 from instrument.contact import FloatArray
 
 
-def _save(fig: Figure, path: str | Path) -> Path:
+def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
+    """Render on the Agg canvas and write a PNG, making the folder if needed."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
     return path
 
 
@@ -40,7 +41,7 @@ def plot_relaxation(
         ax.set_ylabel("G (kPa)")
         ax.set_title(label)
         ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_passes(
@@ -63,7 +64,7 @@ def plot_passes(
     ax_h.legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_force(path: str | Path, t: FloatArray, force: FloatArray, title: str = "") -> Path:
@@ -76,4 +77,4 @@ def plot_force(path: str | Path, t: FloatArray, force: FloatArray, title: str = 
     ax.set_ylabel("force (mN)")
     if title:
         ax.set_title(title)
-    return _save(fig, path)
+    return save_figure(fig, path)

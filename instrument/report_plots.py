@@ -10,22 +10,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from instrument.analysis import RelaxationFit
 from instrument.contact import FloatArray
+from instrument.plots import save_figure
 
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
             "tab:pink", "tab:gray", "tab:olive", "tab:cyan")
-
-
-def _save(fig: Figure, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=100)
-    return path
 
 
 def _bins(t: FloatArray, y: FloatArray, n: int = 2000) -> tuple[FloatArray, FloatArray]:
@@ -59,7 +51,7 @@ def plot_hold_fits(
     bottom.set_xlabel("time in hold (s)")
     bottom.set_ylabel("residual, bin means (Pa)")
     bottom.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=100)
 
 
 @dataclass(frozen=True)
@@ -93,7 +85,7 @@ def plot_pass_curves(
     ax_v.set_ylabel("F_v (mN)")
     ax_h.legend(fontsize=7)
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=100)
 
 
 def plot_vs_speed(
@@ -116,7 +108,7 @@ def plot_vs_speed(
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=100)
 
 
 @dataclass(frozen=True)
@@ -154,4 +146,4 @@ def plot_fit_grid(
     for ax in axes[:, 0]:
         ax.set_ylabel(ylabel, fontsize=7)
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=100)

@@ -59,11 +59,7 @@ class CompressionRig:
 
     def close(self) -> None:
         self.stop_all()
-        for closer in (self.force.stop, self.force.close, self.stage.close, *self.close_hooks):
-            try:
-                closer()
-            except Exception:
-                log.exception("closing %r failed", closer)
+        _run_all((self.force.stop, self.force.close, self.stage.close, *self.close_hooks))
 
 
 @dataclass
@@ -87,11 +83,16 @@ class ShearRig:
 
     def close(self) -> None:
         self.stop_all()
-        for closer in (self.rheometer.close, *self.close_hooks):
-            try:
-                closer()
-            except Exception:
-                log.exception("closing %r failed", closer)
+        _run_all((self.rheometer.close, *self.close_hooks))
+
+
+def _run_all(closers: tuple[Callable[[], None], ...]) -> None:
+    """Call every closer even if some fail (each failure is logged): release everything."""
+    for closer in closers:
+        try:
+            closer()
+        except Exception:
+            log.exception("closing %r failed", closer)
 
 
 Rig = CompressionRig | ShearRig
