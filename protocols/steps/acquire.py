@@ -160,10 +160,19 @@ class ForceRecorder:
                     return seen + int(over[0])
             seen += len(data["t_s"])
             if not self.rig.stage.is_moving():
+                self._catch_up(self.ctx.clock.now())
                 return None
 
     def _drain_motion(self) -> None:
         while self.rig.stage.is_moving():
+            self.read()
+        self._catch_up(self.ctx.clock.now())
+
+    def _catch_up(self, t: float) -> None:
+        """Read until the samples reach time ``t``: when the loop lags the sample clock
+        (paced or real time), a motion is over only once its samples are all in, so none
+        of them spill into whatever comes next."""
+        while self._last_t is not None and self._last_t < t - 1.0 / self.rate:
             self.read()
 
     def dwell(self, duration: float, progress: bool = False, label: str = "",
