@@ -25,25 +25,16 @@ from instrument.store import RunDirectory, read_step
 
 def record(name: str, out: Path) -> Path:
     """The paper's protocol ``name`` on its simulated rig, recorded to ``out``."""
-    from gelrig.factory import build_rig
     from gelrig.rigfile import default_rig, load_rig
-    from gelrig.session import metadata
+    from gelrig.session import execute, metadata
     from instrument.clock import VirtualClock
-    from protocols.events import EventBus, RunState
-    from protocols.recorder import Recorder
-    from protocols.runner import Runner
+    from protocols.events import RunState
     from protocols.spec import load_protocol, paper_protocol
 
     protocol = load_protocol(paper_protocol(name))
     spec = load_rig(default_rig(protocol.rig))
-    rig = build_rig(spec, VirtualClock())
     run = RunDirectory.create(out, metadata(protocol, spec, "virtual"))
-    bus = EventBus()
-    bus.subscribe(Recorder(run), critical=True)
-    try:
-        state = Runner(rig, protocol, bus).run()
-    finally:
-        rig.close()
+    state, _ = execute(protocol, spec, VirtualClock(), run, show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"recording paper:{name} ended {state.value}")
     return out

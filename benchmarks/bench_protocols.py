@@ -19,16 +19,14 @@ from pathlib import Path
 
 from _timing import median_time
 
-from gelrig.factory import build_rig
 from gelrig.rigfile import default_rig, load_rig
+from gelrig.session import execute
 from instrument import paper
 from instrument.clock import VirtualClock
 from instrument.compression import ramp_hold
 from instrument.sliding import SlidingGeometry, shear_pass
 from instrument.store import RunDirectory
-from protocols.events import EventBus, RunState
-from protocols.recorder import Recorder
-from protocols.runner import Runner
+from protocols.events import RunState
 from protocols.spec import load_protocol, paper_protocol
 
 
@@ -36,13 +34,8 @@ def run_protocol(kind: str, folder: Path) -> tuple[float, float]:
     """(wall s, lab s) of one full paper protocol, recorded to disk."""
     t0 = time.perf_counter()
     clock = VirtualClock()
-    rig = build_rig(load_rig(default_rig(kind)), clock)
-    bus = EventBus()
-    bus.subscribe(Recorder(RunDirectory.create(folder, {})), critical=True)
-    try:
-        state = Runner(rig, load_protocol(paper_protocol(kind)), bus).run()
-    finally:
-        rig.close()
+    state, _ = execute(load_protocol(paper_protocol(kind)), load_rig(default_rig(kind)), clock,
+                       RunDirectory.create(folder, {}), show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"{kind} protocol ended {state.value}")
     return time.perf_counter() - t0, clock.now()

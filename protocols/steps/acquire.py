@@ -42,8 +42,6 @@ class ForceRecorder:
         self.n_max = max(1, round(rate * block_time))
         self.keep = keep
         self.kept: dict[str, list[FloatArray]] = {k: [] for k in COLUMNS}
-        self._poll_t = math.nan
-        self._poll_z = math.nan
         self._polls_t: FloatArray = np.empty(0)
         self._polls_z: FloatArray = np.empty(0)
         self._last_f = math.nan
@@ -63,10 +61,10 @@ class ForceRecorder:
 
     def _poll(self) -> None:
         before = self.ctx.clock.now()
-        self._poll_z = self.rig.stage.position()
-        self._poll_t = 0.5 * (before + self.ctx.clock.now())  # the reply's likely moment
-        self._polls_t = np.append(self._polls_t[-(_POLLS - 1):], self._poll_t)
-        self._polls_z = np.append(self._polls_z[-(_POLLS - 1):], self._poll_z)
+        z = self.rig.stage.position()
+        t = 0.5 * (before + self.ctx.clock.now())  # the reply's likely moment
+        self._polls_t = np.append(self._polls_t[-(_POLLS - 1):], t)
+        self._polls_z = np.append(self._polls_z[-(_POLLS - 1):], z)
 
     def _block_size(self, watch: tuple[float, ...], n_max: int) -> int:
         """Samples that can be read before a watched level could be crossed (halved for

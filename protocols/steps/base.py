@@ -42,13 +42,7 @@ class StepDefinition:
 
     def parse(self, table: Mapping[str, Any], prefix: str, source: str | None) -> Params:
         """Validated SI parameters from a protocol-file table (``kind``/``name`` excluded)."""
-        params: Params = dict(parse_table(table, self.fields, prefix, source,
-                                          ignore=("kind", "name")))
-        self.validate(params, prefix, source)
-        return params
-
-    def validate(self, params: Params, prefix: str, source: str | None) -> None:
-        """Cross-field checks; raise ConfigError naming the field."""
+        return dict(parse_table(table, self.fields, prefix, source, ignore=("kind", "name")))
 
     def plan(self, params: Params, limits: Any) -> StepPlan:
         raise NotImplementedError

@@ -7,7 +7,7 @@ import math
 from typing import Any, ClassVar
 
 from instrument.analysis import fit_hold
-from instrument.errors import ConfigError, GelrigError
+from instrument.errors import GelrigError
 from instrument.fields import Field
 from protocols.context import StepContext
 from protocols.interlocks import Interlock
@@ -37,10 +37,6 @@ class RampHold(StepDefinition):
         Field("terms", "", 2, 1, 2, integer=True,
               help="relaxation terms fitted (1 and up to this)"),
     )
-
-    def validate(self, params: Params, prefix: str, source: str | None) -> None:
-        if params["strain"] * params["diameter"] >= params["diameter"] / 2:
-            raise ConfigError(f"{prefix}strain", params["strain"], "allowed: < 0.5", source)
 
     def plan(self, params: Params, limits: Any) -> StepPlan:
         depth = params["strain"] * params["diameter"]

@@ -9,50 +9,19 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import pytest
 
-from drivers.mcr501 import MCR501, VisaTransport, open_resource_manager
+from drivers.mcr501 import MCR501, VisaTransport
 from instrument.clock import VirtualClock
 from instrument.errors import DeviceErrorReply, LimitError
 from instrument.rheometer import Rheometer, RheometerConfig
 from instrument.sliding import rpm_from_speed
-from simulators.mcr501 import DirectLink, MCR501Simulator, SimConfig, SimulatorServer
+from simulators.mcr501 import DirectLink, MCR501Simulator, SimConfig
+from tests.drivers.mcr501_harness import rig
 
 PAPER_SPEEDS = (2.38e-5, 4.75e-5, 1.19e-4, 2.37e-4)
-
-
-@pytest.fixture(scope="module")
-def rm() -> Iterator[Any]:
-    manager = open_resource_manager("@py")
-    yield manager
-    manager.close()
-
-
-@dataclass
-class Rig:
-    clock: VirtualClock
-    sim: MCR501Simulator
-    server: SimulatorServer
-    drv: MCR501
-
-
-@contextmanager
-def rig(
-    rm: Any, sim_config: SimConfig | None = None, config: RheometerConfig | None = None
-) -> Iterator[Rig]:
-    clock = VirtualClock()
-    sim = MCR501Simulator(clock, sim_config if sim_config is not None else SimConfig())
-    with SimulatorServer(sim) as server:
-        drv = MCR501.open(server.resource, clock, config, resource_manager=rm)
-        try:
-            yield Rig(clock, sim, server, drv)
-        finally:
-            drv.close()
 
 
 def test_driver_meets_the_rheometer_protocol(rm: Any) -> None:

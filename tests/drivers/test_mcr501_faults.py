@@ -5,15 +5,12 @@ Driver against the simulator through pyvisa-py over TCP, in virtual time.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pytest
 
-from drivers.mcr501 import MCR501, InstrumentTrip, UnknownCommand, open_resource_manager
+from drivers.mcr501 import InstrumentTrip, UnknownCommand
 from instrument.clock import VirtualClock
 from instrument.errors import (
     DeviceErrorReply,
@@ -23,44 +20,15 @@ from instrument.errors import (
     LimitError,
 )
 from instrument.rheometer import RheometerConfig
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from simulators.mcr501 import MCR501Simulator, SimConfig
+from tests.drivers.mcr501_harness import Rig
+from tests.drivers.mcr501_harness import rig as _rig
 
 
-@pytest.fixture(scope="module")
-def rm() -> Iterator[Any]:
-    manager = open_resource_manager("@py")
-    yield manager
-    manager.close()
-
-
-@dataclass
-class Rig:
-    clock: VirtualClock
-    sim: MCR501Simulator
-    server: SimulatorServer
-    drv: MCR501
-
-    def arm_stopped(self) -> bool:
-        """The simulated motor has a zero set speed and has come to rest."""
-        now = self.clock.now()
-        self.clock.sleep(1.0)  # allow for the deceleration ramp
-        _, omega = self.sim.cell.spin.state(self.clock.now())
-        return self.sim.cell.spin.target == 0.0 and omega == 0.0 and now < self.clock.now()
-
-
-@contextmanager
-def rig(
-    rm: Any, sim_config: SimConfig | None = None, config: RheometerConfig | None = None
-) -> Iterator[Rig]:
-    clock = VirtualClock()
-    cfg = sim_config if sim_config is not None else SimConfig(start_referenced=True)
-    sim = MCR501Simulator(clock, cfg)
-    with SimulatorServer(sim) as server:
-        drv = MCR501.open(server.resource, clock, config, resource_manager=rm)
-        try:
-            yield Rig(clock, sim, server, drv)
-        finally:
-            drv.close()
+def rig(rm: Any, sim_config: SimConfig | None = None, config: RheometerConfig | None = None) -> Any:
+    """The shared harness, with the gap already referenced unless told otherwise."""
+    return _rig(rm, sim_config if sim_config is not None else SimConfig(start_referenced=True),
+                config)
 
 
 def _spin(r: Rig, speed: float = 1e-3) -> None:

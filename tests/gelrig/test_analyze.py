@@ -17,14 +17,12 @@ import pytest
 
 from gelrig.analyze_run import analyze_run
 from gelrig.cli import main
-from gelrig.factory import build_rig
 from gelrig.rigfile import default_rig, load_rig
+from gelrig.session import execute
 from instrument.clock import VirtualClock
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory
-from protocols.events import EventBus, RunState
-from protocols.recorder import Recorder
-from protocols.runner import Runner
+from protocols.events import RunState
 from protocols.spec import parse_protocol
 
 SHEAR_STEPS = [{"kind": "speed_ladder", "name": "ladder", "overlaps": 2,
@@ -42,14 +40,8 @@ def record(kind, steps, path):
     protocol = parse_protocol({"protocol": {"name": f"short {kind}", "rig": kind},
                                "step": steps})
     spec = load_rig(default_rig(kind))
-    rig = build_rig(spec, VirtualClock())
     run = RunDirectory.create(path, {"protocol": protocol.table, "rig": spec.table})
-    bus = EventBus()
-    bus.subscribe(Recorder(run), critical=True)
-    try:
-        state = Runner(rig, protocol, bus).run()
-    finally:
-        rig.close()
+    state, _ = execute(protocol, spec, VirtualClock(), run, show=False)
     assert state is RunState.COMPLETED
     return run
 

@@ -1,0 +1,43 @@
+"""The MCR 501 driver on its simulator through pyvisa-py over TCP, for the driver tests."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from drivers.mcr501 import MCR501
+from instrument.clock import VirtualClock
+from instrument.rheometer import RheometerConfig
+from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+
+
+@dataclass
+class Rig:
+    clock: VirtualClock
+    sim: MCR501Simulator
+    server: SimulatorServer
+    drv: MCR501
+
+    def arm_stopped(self) -> bool:
+        """The simulated motor has a zero set speed and has come to rest."""
+        now = self.clock.now()
+        self.clock.sleep(1.0)  # allow for the deceleration ramp
+        _, omega = self.sim.cell.spin.state(self.clock.now())
+        return self.sim.cell.spin.target == 0.0 and omega == 0.0 and now < self.clock.now()
+
+
+@contextmanager
+def rig(
+    rm: Any, sim_config: SimConfig | None = None, config: RheometerConfig | None = None
+) -> Iterator[Rig]:
+    """A simulator on a TCP server in this process, sharing a VirtualClock with the driver."""
+    clock = VirtualClock()
+    sim = MCR501Simulator(clock, sim_config if sim_config is not None else SimConfig())
+    with SimulatorServer(sim) as server:
+        drv = MCR501.open(server.resource, clock, config, resource_manager=rm)
+        try:
+            yield Rig(clock, sim, server, drv)
+        finally:
+            drv.close()
