@@ -37,7 +37,11 @@ def _values(values: dict[str, float]) -> str:
 
 
 class ConsoleView:
-    """Subscriber: one progress bar per step, state changes and faults as lines."""
+    """Subscriber: one progress bar per step, state changes and faults as lines.
+
+    It renders only from the publishing thread (no auto-refresh thread): rich's lazy imports
+    are not safe to race, and one thread is all a progress display needs.
+    """
 
     def __init__(self, console: Console | None = None):
         self.console = console or Console(stderr=True)
@@ -45,6 +49,7 @@ class ConsoleView:
             TextColumn("[bold]{task.description}"), BarColumn(),
             TextColumn("{task.percentage:>5.1f}%"), TextColumn("ETA {task.fields[eta]}"),
             TextColumn("{task.fields[live]}"), console=self.console, transient=False,
+            auto_refresh=False,
         )
         self._task: TaskID | None = None
         self._lock = threading.Lock()
@@ -59,6 +64,7 @@ class ConsoleView:
     def __call__(self, event: Event) -> None:
         with self._lock:
             self._handle(event)
+            self.progress.refresh()
 
     def _handle(self, event: Event) -> None:
         if isinstance(event, StepStarted):

@@ -147,8 +147,10 @@ class EventBus:
                 continue
             try:
                 subscriber(event)
-            except Exception:
-                log.exception("event subscriber %r failed on %s", subscriber, type(event).__name__)
+            except Exception as exc:  # a display: one line for the user, details for debugging
+                log.error("a display (%s) failed on %s: %s: %s", type(subscriber).__name__,
+                          type(event).__name__, type(exc).__name__, exc)
+                log.debug("subscriber failure", exc_info=True)
 
 
 def as_columns(**columns: FloatArray | float) -> dict[str, FloatArray]:
