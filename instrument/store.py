@@ -259,7 +259,10 @@ def read_step(path: str | Path, columns: Sequence[str] | None = None) -> dict[st
         stored = [k for k in handle if isinstance(handle[k], h5py.Dataset)]
         order = json.loads(handle.attrs.get("columns", "[]"))
         names = list(columns or [k for k in order if k in stored] or stored)
-        return {name: np.asarray(handle[name][:], dtype=float) for name in names}
+        # Columns are flushed one after another: a reader during writing, or a file killed
+        # between two flushes, sees some longer than others. A row exists once all have it.
+        rows = min((handle[name].shape[0] for name in names), default=0)
+        return {name: np.asarray(handle[name][:rows], dtype=float) for name in names}
 
 
 def seal_step(path: str | Path) -> bool:

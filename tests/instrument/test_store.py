@@ -90,3 +90,15 @@ def test_sigkill_mid_step_keeps_flushed_samples(tmp_path):
         assert handle["t_s"].shape[0] == data["t_s"].size
     assert seal_step(path) is False
     assert read_step(path)["force_N"].size == data["t_s"].size
+
+
+def test_read_step_keeps_only_complete_rows(tmp_path):
+    """A kill between two column flushes leaves columns of unequal length."""
+    path = tmp_path / "ragged.h5"
+    with h5py.File(path, "w") as handle:
+        handle.attrs["columns"] = json.dumps(["t_s", "force_N"])
+        handle.create_dataset("t_s", data=np.arange(10.0))
+        handle.create_dataset("force_N", data=np.ones(7))
+    data = read_step(path)
+    assert data["t_s"].size == data["force_N"].size == 7
+    np.testing.assert_array_equal(data["t_s"], np.arange(7.0))
