@@ -2,25 +2,22 @@
 
 A composition root (design.md): it may import every package; nothing imports it. Every
 user-facing failure ends as one line on stderr and exit code 2 (bad input) or 1 (a fault
-while running); ``--debug`` shows the traceback instead.
+while running); ``--debug`` shows the traceback instead. Building the parser imports no heavy
+package (numpy, scipy, matplotlib, nidaqmx, grpc, h5py, Qt): each command imports what it
+needs when it runs, so ``gelrig --help`` answers at once.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
+import importlib
 import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from instrument.errors import ConfigError, GelrigError
-
-#: Simulators reachable through ``gelrig sim serve NAME``: module with add_arguments / run.
-SIMULATOR_SERVERS = {
-    "kdc101": "simulators.kdc101.serve",
-    "usb6001": "simulators.usb6001.serve",
-    "mcr501": "simulators.mcr501.serve",
-}
 
 
 class UsageError(GelrigError):
@@ -55,7 +52,7 @@ def build_parser() -> Parser:
 
 
 def _register_sim(sub: argparse._SubParsersAction) -> None:
-    import importlib
+    from simulators.serve_options import SERVED
 
     sim = sub.add_parser("sim", help="simulated instruments")
     sim_sub = sim.add_subparsers(dest="sim_command", parser_class=Parser, metavar="ACTION")
@@ -63,16 +60,16 @@ def _register_sim(sub: argparse._SubParsersAction) -> None:
     serve = sim_sub.add_parser("serve", help="serve a simulated instrument on its wire protocol")
     which = serve.add_subparsers(dest="instrument", parser_class=Parser, metavar="INSTRUMENT")
     which.required = True
-    for name, module_name in SIMULATOR_SERVERS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name is None or not module_name.startswith(exc.name):
-                raise
-            continue  # that simulator is not built yet
-        p = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
-        module.add_arguments(p)
-        p.set_defaults(handler=module.run)
+    for name, served in SERVED.items():
+        p = which.add_parser(name, help=served.summary)
+        served.add_arguments(p)
+        p.set_defaults(handler=functools.partial(_serve, served.module))
+
+
+def _serve(module_name: str, args: argparse.Namespace) -> int:
+    """Import a simulator's serve module only now, and serve it."""
+    run: Handler = importlib.import_module(module_name).run
+    return run(args)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,13 +1,20 @@
-"""argparse value types for SI quantities given as numbers or unit-bearing strings."""
+"""argparse value types for SI quantities given as numbers or unit-bearing strings.
+
+Light to import (the parser is built on every ``gelrig`` call): the contact model is imported
+only when a relaxation term is parsed.
+"""
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from instrument.contact import RelaxationTerm
 from instrument.errors import ConfigError
 from instrument.units import to_si
+
+if TYPE_CHECKING:
+    from instrument.contact import RelaxationTerm
 
 
 def quantity(unit: str, minimum: float | None = 0.0, strict: bool = True) -> Callable[[str], float]:
@@ -40,6 +47,8 @@ def poisson(text: str) -> float:
 
 def relax_term(text: str) -> RelaxationTerm:
     """'G:TAU' with G in Pa and TAU in s, e.g. '2e4:2000' or '20 kPa:2000 s'."""
+    from instrument.contact import RelaxationTerm
+
     parts = text.split(":")
     if len(parts) != 2 or not all(p.strip() for p in parts):
         raise argparse.ArgumentTypeError(

@@ -6,16 +6,16 @@ import argparse
 import sys
 
 from gelrig.commands._args import quantity
-from instrument import paper
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     analyze = sub.add_parser("analyze", help="analyse a run directory into an HTML report")
     analyze.add_argument("run_dir", metavar="RUN_DIR")
     analyze.add_argument("--out", default=None, help="report folder (default RUN_DIR/analysis)")
-    analyze.add_argument("--r1", type=quantity("m"), default=paper.R1_SHEAR,
+    # Defaults None, resolved when the command runs: the paper's values import the model.
+    analyze.add_argument("--r1", type=quantity("m"), default=None,
                          help="shear rig: upper sphere radius (default the paper's 9.2 mm)")
-    analyze.add_argument("--r2", type=quantity("m"), default=paper.R2_SHEAR,
+    analyze.add_argument("--r2", type=quantity("m"), default=None,
                          help="shear rig: lower sphere radius (default the paper's 9.96 mm)")
     analyze.add_argument("--terms", type=int, choices=(1, 2), default=1,
                          help="relaxation terms of the shear model fit (default 1)")
@@ -29,8 +29,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gelrig.analyze_run import analyze_run
+    from instrument import paper
 
-    result = analyze_run(args.run_dir, args.out, r1=args.r1, r2=args.r2, terms=args.terms,
+    r1 = paper.R1_SHEAR if args.r1 is None else args.r1
+    r2 = paper.R2_SHEAR if args.r2 is None else args.r2
+    result = analyze_run(args.run_dir, args.out, r1=r1, r2=r2, terms=args.terms,
                          fit_model=not args.no_model_fit, fit_geometry=not args.fixed_geometry)
     print(result.summary)
     if result.problems:

@@ -12,16 +12,12 @@ import json
 import shutil
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # the model, numpy and matplotlib are imported when the command runs
+    import numpy as np
 
-from instrument import paper
-from instrument.analysis import contact_length, fit_hold, modulus_history
-from instrument.compression import ramp_hold
-from instrument.contact import Material
-from instrument.csvio import write_columns
-from instrument.plots import plot_force, plot_passes, plot_relaxation
-from instrument.sliding import SlidingGeometry, rpm_from_speed, shear_pass
+    from instrument.contact import Material
 
 #: Load-cell noise added to the modelled holds (N, 1 sigma), about the USB-6001's 14-bit step
 #: through the default load-cell chain; seeded, so every demo run is identical.
@@ -38,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     summary: dict[str, object] = {}
@@ -99,6 +97,12 @@ def _runs(folder: Path) -> dict[str, object]:
 
 
 def _compression(out: Path, rng: np.random.Generator) -> dict[str, object]:
+    from instrument import paper
+    from instrument.analysis import fit_hold, modulus_history
+    from instrument.compression import ramp_hold
+    from instrument.csvio import write_columns
+    from instrument.plots import plot_force, plot_relaxation
+
     radius, depth = paper.R_COMPRESSION, paper.DEPTH_HOLD
     print(f"Compression: sphere {paper.DIAMETER_COMPRESSION * 1e3:.2f} mm, ramp to "
           f"{depth * 1e3:.3f} mm at {paper.RAMP_SPEED * 1e6:.1f} um/s, hold {paper.HOLD:.0f} s "
@@ -127,6 +131,12 @@ def _compression(out: Path, rng: np.random.Generator) -> dict[str, object]:
 
 
 def _shear(out: Path) -> dict[str, object]:
+    from instrument import paper
+    from instrument.analysis import contact_length
+    from instrument.csvio import write_columns
+    from instrument.plots import plot_passes
+    from instrument.sliding import SlidingGeometry, rpm_from_speed, shear_pass
+
     geometry = SlidingGeometry(paper.R1_SHEAR, paper.R2_SHEAR, paper.DELTA_MAX_SHOWN)
     print(f"\nShear: R1 {paper.R1_SHEAR * 1e3:.2f} mm over R2 {paper.R2_SHEAR * 1e3:.2f} mm, "
           f"delta_max {paper.DELTA_MAX_SHOWN * 1e3:.2f} mm, mu {paper.MU:g}, "

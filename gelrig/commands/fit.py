@@ -6,8 +6,6 @@ import argparse
 import json
 
 from gelrig.commands._args import poisson, quantity
-from instrument.analysis import fit_hold
-from instrument.csvio import read_columns
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,6 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from instrument.analysis import fit_hold
+    from instrument.csvio import read_columns
+
     cols = read_columns(args.file, ["t_s", "force_N"], ["delta_m"])
     fit = fit_hold(cols["t_s"], cols["force_N"], args.radius, args.depth, args.nu, args.terms,
                    delta=cols.get("delta_m"))

@@ -13,13 +13,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from instrument.clock import Clock
 from instrument.errors import ConfigError, GelrigError
-from protocols.rig import Rig
-from protocols.spec import ProtocolSpec
 
 if TYPE_CHECKING:
     from gui.services import RigSpecLike, Services
+    from instrument.clock import Clock
+    from protocols.rig import Rig
+    from protocols.spec import ProtocolSpec
 
 PACES = {"1": 1.0, "10": 10.0, "100": 100.0, "inf": math.inf, "max": math.inf}
 

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from gelrig.commands._args import add_material, quantity
-from instrument.compression import ramp_hold
-from instrument.contact import Material
-from instrument.csvio import write_columns
 from instrument.errors import ConfigError
-from instrument.sliding import SlidingGeometry, shear_pass
+
+if TYPE_CHECKING:  # the model is imported when the command runs
+    from instrument.contact import Material
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -60,10 +60,15 @@ def _rate(text: str) -> tuple[str, float]:
 
 
 def _material(args: argparse.Namespace) -> Material:
+    from instrument.contact import Material
+
     return Material(args.g_e, tuple(args.relax), args.nu)
 
 
 def run_compression(args: argparse.Namespace) -> int:
+    from instrument.compression import ramp_hold
+    from instrument.csvio import write_columns
+
     kind, value = args.rate
     speed = value if kind == "speed" else value * 2.0 * args.radius
     if args.depth >= args.radius:
@@ -77,6 +82,9 @@ def run_compression(args: argparse.Namespace) -> int:
 
 
 def run_shear(args: argparse.Namespace) -> int:
+    from instrument.csvio import write_columns
+    from instrument.sliding import SlidingGeometry, shear_pass
+
     try:
         geometry = SlidingGeometry(args.r1, args.r2, args.delta_max)
     except ConfigError as exc:

@@ -5,18 +5,18 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from gelrig.rigfile import RigSpec, default_rig, load_rig, parse_rig
-from instrument.clock import clock_from_spec
-from instrument.csvio import write_columns
 from instrument.errors import ConfigError
-from instrument.store import RunDirectory, read_step
-from protocols.events import RunState
-from protocols.plan import dry_run
-from protocols.spec import ProtocolSpec, load_protocol, paper_protocol, parse_protocol
 
-EXIT = {RunState.COMPLETED: 0, RunState.FAILED: 1, RunState.ABORTED: 3}
+if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when a command runs
+    from gelrig.rigfile import RigSpec
+    from instrument.store import RunDirectory
+    from protocols.events import RunState
+    from protocols.spec import ProtocolSpec
+
+#: Exit code by the final RunState's value.
+EXIT = {"completed": 0, "failed": 1, "aborted": 3}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,12 +51,16 @@ def _protocol_args(parser: argparse.ArgumentParser) -> None:
 
 
 def resolve_protocol(name: str) -> ProtocolSpec:
+    from protocols.spec import load_protocol, paper_protocol
+
     if name.startswith("paper:"):
         return load_protocol(paper_protocol(name.split(":", 1)[1]))
     return load_protocol(name)
 
 
 def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
+    from gelrig.rigfile import default_rig, load_rig
+
     rig = load_rig(path if path else default_rig(protocol.rig))
     if rig.kind != protocol.rig:
         raise ConfigError("--rig", rig.source, f"is a {rig.kind} rig; protocol "
@@ -66,6 +70,8 @@ def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
 
 def print_plan(protocol: ProtocolSpec, rig: RigSpec) -> list[str]:
     """Print the plan; returns the messages of failed limit checks."""
+    from protocols.plan import dry_run
+
     print(f"Protocol: {protocol.name}  ({protocol.source})")
     print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
     summary = dry_run(protocol, rig.limits)
@@ -84,6 +90,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
     from gelrig.session import check_clock
+    from instrument.clock import clock_from_spec
 
     spec = spec or ("virtual" if rig.simulated else "real")
     try:
@@ -96,6 +103,7 @@ def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from gelrig.session import default_run_dir, execute, metadata
+    from instrument.store import RunDirectory
 
     protocol = resolve_protocol(args.protocol)
     rig = resolve_rig(args.rig, protocol)
@@ -108,11 +116,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"\nrecording to {out.resolve()} ({spec} clock)")
     state, runner = execute(protocol, rig, clock, run)
     summarise(run, state, runner.reason)
-    return EXIT.get(state, 1)
+    return EXIT.get(state.value, 1)
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
+    from gelrig.rigfile import parse_rig
     from gelrig.session import execute
+    from instrument.store import RunDirectory
+    from protocols.spec import parse_protocol
 
     run = RunDirectory(args.run_dir)
     meta = run.read_metadata()
@@ -129,10 +140,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
     run.update(resumed=[*meta.get("resumed", []), spec])
     state, runner = execute(protocol, rig, clock, run, completed)
     summarise(run, state, runner.reason)
-    return EXIT.get(state, 1)
+    return EXIT.get(state.value, 1)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    from instrument.csvio import write_columns
+    from instrument.store import RunDirectory, read_step
+
     run = RunDirectory(args.run_dir)
     meta = run.read_metadata()
     out = Path(args.out) if args.out else run.path / "csv"

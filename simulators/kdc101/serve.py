@@ -23,6 +23,7 @@ from instrument.clock import Clock, clock_from_spec
 from instrument.errors import ConfigError
 from instrument.units import to_si
 from simulators.kdc101.device import KDC101Simulator, SimConfig
+from simulators.serve_options import kdc101_arguments as add_arguments
 
 POLL_S = 0.002  # how often the loop looks for due status updates and motion events
 
@@ -139,23 +140,6 @@ class PtyServer(_Server):
         for fd in (self._master, self._slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``gelrig sim serve kdc101``."""
-    where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--tcp", metavar="HOST:PORT", help="listen on TCP (port 0: any free)")
-    where.add_argument("--pty", action="store_true", help="create a pseudo-terminal")
-    parser.add_argument("--clock", default="real", help="real or paced:K (default real)")
-    parser.add_argument("--serial", type=int, default=27000001, help="serial number (27xxxxxx)")
-    parser.add_argument("--counts-per-mm", type=float, default=34554.96,
-                        help="the actuator's true encoder scale")
-    parser.add_argument("--travel", default="25 mm", help="actuator travel")
-    parser.add_argument("--start-position", default="5 mm",
-                        help="extension from the home switch at power-on")
-    parser.add_argument("--home-offset", default="0.1 mm", help="home position past the switch")
-    parser.add_argument("--duration", type=float, default=None,
-                        help="stop after this many real seconds (default: until interrupted)")
 
 
 def _config(args: argparse.Namespace) -> SimConfig:

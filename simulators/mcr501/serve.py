@@ -9,7 +9,6 @@ process, so it is not offered here.
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from dataclasses import replace
 
@@ -19,20 +18,9 @@ from instrument.units import to_si
 from simulators.mcr501.config import SimConfig
 from simulators.mcr501.instrument import MCR501Simulator
 from simulators.mcr501.server import SimulatorServer
+from simulators.serve_options import mcr501_arguments as add_arguments
 
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
-    parser.add_argument("--port", type=int, default=5025, help="TCP port (0: any free port)")
-    parser.add_argument("--clock", default="real", help="real or paced:K (K x real time)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    parser.add_argument(
-        "--lower-angle", default="0.8", help="lower sphere position (rad or '45 deg')"
-    )
-    parser.add_argument("--touch-gap", default="3 mm", help="gap where the spheres touch on top")
-    parser.add_argument(
-        "--duration", type=float, default=math.inf, help="stop after this many real seconds"
-    )
+__all__ = ["add_arguments", "build", "run"]
 
 
 def build(args: argparse.Namespace) -> tuple[Clock, MCR501Simulator]:

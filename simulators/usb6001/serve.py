@@ -18,33 +18,18 @@ from instrument.errors import ConfigError
 from instrument.loadcell import LoadCellChain
 from instrument.paper import DEPTH_HOLD
 from instrument.units import to_si
+from simulators.serve_options import USB6001_PORT as DEFAULT_PORT
+from simulators.serve_options import usb6001_arguments as add_arguments
 from simulators.usb6001.rig import SIM_OFFSET, compression_daq
 from simulators.usb6001.server import start_server
 from simulators.usb6001.signals import DEFAULT_NOISE_RMS
 
-#: Port of the NI gRPC Device Server's default configuration.
-DEFAULT_PORT = 31763
+__all__ = ["DEFAULT_PORT", "add_arguments", "run"]
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``gelrig sim serve usb6001``."""
-    parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
-    parser.add_argument("--port", type=int, default=DEFAULT_PORT,
-                        help=f"TCP port (0: any free port; default {DEFAULT_PORT})")
-    parser.add_argument("--clock", default="real", help="real, paced:K or virtual")
-    parser.add_argument("--first-touch", default="2 mm",
-                        help="stage position of the sphere's top (default 2 mm)")
-    parser.add_argument("--plate-start", default="0 mm",
-                        help="plate position at start (default 0 mm)")
-    parser.add_argument("--ramp-speed", default="0 m/s",
-                        help="plate speed into the sphere (default 0: the plate stays still)")
-    parser.add_argument("--depth", default=f"{DEPTH_HOLD} m",
-                        help="overlap where the ramp stops and the hold begins (default 6 %%)")
-    parser.add_argument("--noise", default=f"{DEFAULT_NOISE_RMS} V", help="rms input noise")
-    parser.add_argument("--offset", default=f"{SIM_OFFSET} V", help="conditioner zero offset")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed")
-    parser.add_argument("--buffer-size", type=int, default=None,
-                        help="acquisition buffer in samples (default: DAQmx's rule)")
+def _or_default(text: str | None, default: float, unit: str, field: str) -> float:
+    """An option's value in SI; ``default`` when it was not given."""
+    return default if text is None else to_si(text, unit, field)
 
 
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
@@ -53,8 +38,9 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     first_touch = to_si(args.first_touch, "m", "--first-touch")
     start = to_si(args.plate_start, "m", "--plate-start")
     speed = to_si(args.ramp_speed, "m/s", "--ramp-speed")
-    depth = to_si(args.depth, "m", "--depth")
-    noise = to_si(args.noise, "V", "--noise")
+    depth = _or_default(args.depth, DEPTH_HOLD, "m", "--depth")
+    noise = _or_default(args.noise, DEFAULT_NOISE_RMS, "V", "--noise")
+    offset = _or_default(args.offset, SIM_OFFSET, "V", "--offset")
     if speed < 0:
         raise ConfigError("--ramp-speed", args.ramp_speed, "must be >= 0 m/s")
     if not 0 <= args.port <= 65535:
@@ -66,7 +52,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         return start if speed == 0 else min(start + speed * (t - t0), max(end, start))
 
     device = compression_daq(
-        clock, plate, first_touch, chain=LoadCellChain(offset=to_si(args.offset, "V", "--offset")),
+        clock, plate, first_touch, chain=LoadCellChain(offset=offset),
         noise_rms=noise, seed=args.seed, buffer_size=args.buffer_size,
     )
     try:
