@@ -25,8 +25,8 @@ from instrument.errors import ConfigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, RunState
-from protocols.recorder import Recorder
 from protocols.runner import Runner
+from protocols.session import RecordedRun
 from protocols.spec import ProtocolSpec
 
 
@@ -94,24 +94,20 @@ def execute(
     """Build the rig, run the protocol into ``run``, close the rig; returns the final state."""
     from gelrig.console import ConsoleView
 
-    bus = bus or EventBus()
-    control = control or RunControl()
-    bus.subscribe(Recorder(run), critical=True)
     rig = build_rig(rig_spec, clock)
     try:
-        run.update(instruments=rig.identities, status="running")
-        runner = Runner(rig, protocol, bus, control, completed)
+        recorded = RecordedRun(rig, protocol, bus, control, completed).record(run)
         view = ConsoleView() if show else None
         with contextlib.ExitStack() as stack:
             if view is not None:
                 stack.enter_context(view)
-                bus.subscribe(view)
+                recorded.bus.subscribe(view)
             stack.enter_context(interrupt_handling(
-                control, view.console.print if view else lambda *_: None))
-            state = runner.run()
+                recorded.control, view.console.print if view else lambda *_: None))
+            state = recorded.run()
     finally:
         rig.close()
-    return state, runner
+    return state, recorded.runner
 
 
 def default_run_dir(protocol: ProtocolSpec) -> Path:

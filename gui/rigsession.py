@@ -1,8 +1,9 @@
 """The rig as the GUI drives it: connect, idle readouts, manual commands, one run at a time.
 
 Not a widget: panels call it and listen to its signals. Every instrument call goes through
-the single :class:`~gui.tasks.RigThread`; a run records through the same Recorder (a critical
-subscriber) as ``gelrig run``, so closing the window or a fault never loses data.
+the single :class:`~gui.tasks.RigThread`; a run is wired by the same
+:class:`~protocols.session.RecordedRun` as ``gelrig run`` (its Recorder a critical
+subscriber), so closing the window or a fault never loses data.
 """
 
 from __future__ import annotations
@@ -25,9 +26,8 @@ from instrument.errors import GelrigError, InstrumentError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, Progress, RunState
-from protocols.recorder import Recorder
 from protocols.rig import CompressionRig, Rig, ShearRig
-from protocols.runner import Runner
+from protocols.session import RecordedRun
 from protocols.spec import ProtocolSpec
 
 log = logging.getLogger(__name__)
@@ -225,11 +225,10 @@ class RigSession(QObject):
         bus = EventBus()
         data = RunData()
         bridge = EventBridge(data, self)
-        runner = Runner(rig, protocol, bus, control)  # refuses a protocol for the other rig
+        recorded = RecordedRun(rig, protocol, bus, control)  # refuses a protocol for the other rig
         path = unique_dir(self.services.default_run_dir(protocol))
         run = RunDirectory.create(path, self.services.metadata(protocol, spec, self.clock_spec()))
-        run.update(instruments=rig.identities, status="running")
-        bus.subscribe(Recorder(run), critical=True)
+        recorded.record(run)
         bridge.received.connect(self._on_event, Qt.ConnectionType.QueuedConnection)
         bus.subscribe(bridge)
         self._monitor.stop()
@@ -239,11 +238,11 @@ class RigSession(QObject):
         def task() -> RunState:
             try:
                 self._drain_monitor(rig)
-                return runner.run()
+                return recorded.run()
             finally:
                 self._force_running = False
 
-        self.worker.submit(task, done=lambda state: self._run_done(state, runner.reason),
+        self.worker.submit(task, done=lambda state: self._run_done(state, recorded.reason),
                            failed=lambda exc: self._run_done(RunState.FAILED,
                                                              f"{type(exc).__name__}: {exc}"))
         self.run_started.emit(run.path)
