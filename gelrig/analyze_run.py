@@ -104,15 +104,17 @@ def _planned_steps(meta: Mapping[str, Any], problems: list[str]) -> list[tuple[s
     except ConfigError as exc:
         problems.append(f"the stored protocol is not valid ({exc}); using the recorded steps")
         return []
-    return [(s.kind, s.name, dict(s.params)) for s in spec.steps]
+    return [(s.kind, s.name, s.params.to_table()) for s in spec.steps]
 
 
 def _arm(meta: Mapping[str, Any], problems: list[str]) -> float:
-    from gelrig.rigfile import parse_rig
+    from protocols.rigfile import ShearRigSpec, parse_rig
 
     try:
         rig = parse_rig(meta["rig"], "run.json rig")
-        return float(rig.instruments["rheometer"].config.arm)
+        if not isinstance(rig, ShearRigSpec):
+            raise ConfigError("rig.kind", rig.kind, "a shear rig has the rheometer arm")
+        return float(rig.rheometer.config.arm)
     except (KeyError, TypeError, ConfigError) as exc:
         problems.append(f"no rheometer arm in the stored rig ({exc}); using the paper's "
                         f"{paper.ARM * 1e3:g} mm")
@@ -272,8 +274,8 @@ _LEVEL_COLUMNS = (
 
 def _search_geometry(steps: list[StepData], ladder: StepData) -> tuple[float, float, str]:
     """Touch gap (m) and lower-sphere angle (rad) for the fit's start, and where from."""
-    touch = float(ladder.params.get("touch_gap", math.nan))
-    angle = float(ladder.params.get("centre_angle", math.nan))
+    touch = float(ladder.params.get("touch_gap") or math.nan)  # None: from the search
+    angle = float(ladder.params.get("centre_angle") or math.nan)
     source = "the ladder's parameters"
     for s in steps:
         if s.kind == "shear_contact_search" and s.index < ladder.index:

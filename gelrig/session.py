@@ -19,13 +19,13 @@ from typing import Any
 
 from gelrig import __version__
 from gelrig.factory import build_rig
-from gelrig.rigfile import RigSpec
 from instrument.clock import Clock, RealClock
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, RunState
 from protocols.recorder import Recorder
+from protocols.rigfile import RigSpec
 from protocols.runner import Runner
 from protocols.spec import ProtocolSpec
 

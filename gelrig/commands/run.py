@@ -7,13 +7,13 @@ import json
 from pathlib import Path
 from typing import Any
 
-from gelrig.rigfile import RigSpec, default_rig, load_rig, parse_rig
 from instrument.clock import clock_from_spec
 from instrument.csvio import write_columns
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory, read_step
 from protocols.events import RunState
 from protocols.plan import dry_run
+from protocols.rigfile import RigSpec, default_rig, load_rig, parse_rig
 from protocols.spec import ProtocolSpec, load_protocol, paper_protocol, parse_protocol
 
 EXIT = {RunState.COMPLETED: 0, RunState.FAILED: 1, RunState.ABORTED: 3}

@@ -31,10 +31,9 @@ COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_
 class ForceRecorder:
     """Reads force blocks, stamps them with the plate position, publishes, keeps a copy."""
 
-    def __init__(self, ctx: StepContext, rate: float, first_touch: float = math.nan,
-                 block_time: float = 0.1, keep: bool = True):
+    def __init__(self, ctx: StepContext[CompressionRig], rate: float,
+                 first_touch: float = math.nan, block_time: float = 0.1, keep: bool = True):
         rig = ctx.rig
-        assert isinstance(rig, CompressionRig)
         self.ctx = ctx
         self.rig = rig
         self.rate = rate

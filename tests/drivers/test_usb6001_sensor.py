@@ -259,10 +259,11 @@ def test_differential_wiring_is_passed_to_the_device(serve: Callable[..., Served
 
 @pytest.mark.parametrize(
     ("mapping", "field"),
-    [({"terminal": "NRSE"}, "terminal"), ({"channel": "ai5", "terminal": "diff"}, "channel"),
-     ({"buffer_seconds": "2 h"}, "buffer_seconds"), ({"over_range_volts": "11 V"},
-                                                     "over_range_volts"),
-     ({"device": 3}, "device"), ({"speed": 1}, "speed")],
+    [({"terminal": "NRSE"}, "[force] terminal"),
+     ({"channel": "ai5", "terminal": "diff"}, "[force] channel"),
+     ({"buffer_seconds": "2 h"}, "[force] buffer_seconds"), ({"over_range_volts": "11 V"},
+                                                     "[force] over_range_volts"),
+     ({"device": 3}, "[force] device"), ({"speed": 1}, "[force] speed")],
 )
 def test_config_from_mapping_names_the_field(mapping: dict[str, object], field: str) -> None:
     with pytest.raises(ConfigError) as info:
