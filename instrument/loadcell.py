@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from instrument.errors import ConfigError, InstrumentError, InstrumentTimeout
 from instrument.fields import Field
+from instrument.identity import Identity
 from instrument.units import to_si
 
 FloatArray = NDArray[np.float64]
@@ -167,8 +168,8 @@ class ForceSensor(Protocol):
         """Sample rate while running (Hz)."""
         ...
 
-    def identity(self) -> dict[str, str]:
-        """What is measuring: instrument, device, serial, channel, transport."""
+    def identify(self) -> Identity:
+        """What is measuring: model and serial; device, channel and transport in ``extra``."""
         ...
 
     def start(self, rate_hz: float) -> None: ...

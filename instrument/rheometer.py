@@ -19,6 +19,7 @@ from typing import Protocol, runtime_checkable
 
 from instrument.errors import ConfigError
 from instrument.fields import Field
+from instrument.identity import Identity
 from instrument.units import to_si
 
 
@@ -75,8 +76,8 @@ class Rheometer(Protocol):
         """Calibration and limits in force."""
         ...
 
-    def identify(self) -> str:
-        """Model, serial number and firmware, as one string."""
+    def identify(self) -> Identity:
+        """Model, serial number and firmware."""
         ...
 
     def status(self) -> RheometerStatus:

@@ -14,6 +14,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from instrument.errors import ConfigError
 from instrument.fields import Field
+from instrument.identity import Identity
 
 
 @dataclass(frozen=True)
@@ -37,17 +38,6 @@ class StageStatus:
         return self.moving or self.homing
 
 
-@dataclass(frozen=True)
-class StageIdentity:
-    """Who answered: what the data store records beside every run."""
-
-    model: str
-    serial_number: int
-    firmware: str
-    hardware_version: int
-    channels: int
-
-
 @runtime_checkable
 class Stage(Protocol):
     """A single-axis linear stage, in SI units. Positions are those of the homed axis.
@@ -56,8 +46,8 @@ class Stage(Protocol):
     ``instrument.errors`` error; a fault while moving commands a stop before it is raised.
     """
 
-    def identify(self) -> StageIdentity:
-        """Ask the controller who it is."""
+    def identify(self) -> Identity:
+        """Ask the controller who it is (what run.json records beside every run)."""
         ...
 
     def enable(self) -> None:
