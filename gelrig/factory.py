@@ -15,6 +15,7 @@ from collections.abc import Callable
 from drivers.mcr501.driver import MCR501
 from instrument.clock import Clock
 from instrument.contact import FloatArray
+from instrument.identity import Identity
 from protocols.rig import CompressionRig, Rig, ShearRig
 from protocols.rigfile import CompressionRigSpec, RigSpec, ShearRigSpec
 
@@ -26,6 +27,11 @@ def build_rig(spec: RigSpec, clock: Clock) -> Rig:
     if isinstance(spec, ShearRigSpec):
         return _shear(spec, clock)
     return _compression(spec, clock)
+
+
+def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:
+    """An instrument's entry in run.json: who it is, and how it was reached."""
+    return {**identity.as_dict(), "transport": transport, "address": address}
 
 
 def _close_all(closers: list[Callable[[], None]]) -> None:
@@ -56,16 +62,15 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
             else:
                 server = SimulatorServer(sim).start()
                 closers.append(server.close)
-                driver = MCR501.open(server.resource, clock, entry.config)
+                driver = MCR501(server.resource, clock, entry.config)
                 where = server.resource
         else:
-            driver = MCR501.open(entry.address, clock, entry.config,
-                                 backend=entry.backend)
+            driver = MCR501(entry.address, clock, entry.config, backend=entry.backend)
             where = entry.address
         closers.insert(0, driver.close)
+        driver.open()
         identities: dict[str, object] = {
-            "rheometer": {"identity": driver.identify(), "transport": entry.transport,
-                          "address": where}}
+            "rheometer": _record(driver.identify(), entry.transport, where)}
     except BaseException:
         _close_all(closers)
         raise
@@ -94,8 +99,8 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
             address = stage_entry.address
         stage = KDC101(address, stage_entry.config, clock)
         closers.append(stage.close)
-        identities["stage"] = {**stage.identify().__dict__, "transport": stage_entry.transport,
-                               "address": address}
+        stage.open()
+        identities["stage"] = _record(stage.identify(), stage_entry.transport, address)
         if force_entry.simulated:
             if not stage_entry.simulated:
                 raise ConfigError("force.transport", "simulator", "a simulated force needs "
@@ -116,9 +121,10 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
             force_address = f"grpc://{server.address}"
         else:
             force_address = force_entry.address if force_entry.transport == "grpc" else "local"
-        force = Usb6001ForceSensor.open(force_address, force_entry.config, chain, clock)
+        force = Usb6001ForceSensor(force_address, force_entry.config, chain, clock)
         closers.append(force.close)
-        identities["force"] = {**force.identity(), "transport": force_entry.transport}
+        force.open()
+        identities["force"] = _record(force.identify(), force_entry.transport, force_address)
     except BaseException:
         _close_all(closers)
         raise

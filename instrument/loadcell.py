@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from instrument.errors import InstrumentError, InstrumentTimeout
 from instrument.fields import Config, Field, param
+from instrument.identity import Identity
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -135,8 +136,8 @@ class ForceSensor(Protocol):
         """Sample rate while running (Hz)."""
         ...
 
-    def identity(self) -> dict[str, str]:
-        """What is measuring: instrument, device, serial, channel, transport."""
+    def identify(self) -> Identity:
+        """What is measuring: model and serial; device, channel and transport in ``extra``."""
         ...
 
     def start(self, rate_hz: float) -> None: ...

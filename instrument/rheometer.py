@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import ClassVar, Protocol, runtime_checkable
 
 from instrument.fields import Config, Field, Where, param
+from instrument.identity import Identity
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,8 @@ class Rheometer(Protocol):
         """Calibration and limits in force."""
         ...
 
-    def identify(self) -> str:
-        """Model, serial number and firmware, as one string."""
+    def identify(self) -> Identity:
+        """Model, serial number and firmware."""
         ...
 
     def status(self) -> RheometerStatus:

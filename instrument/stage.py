@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import ClassVar, Protocol, runtime_checkable
 
 from instrument.fields import Config, Field, Where, param
+from instrument.identity import Identity
 
 
 @dataclass(frozen=True)
@@ -35,17 +36,6 @@ class StageStatus:
         return self.moving or self.homing
 
 
-@dataclass(frozen=True)
-class StageIdentity:
-    """Who answered: what the data store records beside every run."""
-
-    model: str
-    serial_number: int
-    firmware: str
-    hardware_version: int
-    channels: int
-
-
 @runtime_checkable
 class Stage(Protocol):
     """A single-axis linear stage, in SI units. Positions are those of the homed axis.
@@ -54,8 +44,8 @@ class Stage(Protocol):
     ``instrument.errors`` error; a fault while moving commands a stop before it is raised.
     """
 
-    def identify(self) -> StageIdentity:
-        """Ask the controller who it is."""
+    def identify(self) -> Identity:
+        """Ask the controller who it is (what run.json records beside every run)."""
         ...
 
     def enable(self) -> None:

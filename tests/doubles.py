@@ -21,9 +21,10 @@ from numpy.typing import ArrayLike
 from instrument.clock import VirtualClock
 from instrument.contact import FloatArray, Material, hertz_prefactor
 from instrument.errors import InstrumentTimeout, LimitError
+from instrument.identity import Identity
 from instrument.loadcell import ForceBlock, LoadCellChain
 from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
-from instrument.stage import StageConfig, StageIdentity, StageStatus
+from instrument.stage import StageConfig, StageStatus
 from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
 
 
@@ -59,8 +60,8 @@ class FakeStage:
         self._legs: list[_Leg] = [_Leg(-1.0, position, position, 1.0)]
 
     # the contract
-    def identify(self) -> StageIdentity:
-        return StageIdentity("fake stage", 1, "0", 0, 1)
+    def identify(self) -> Identity:
+        return Identity("tests", "fake stage", "1")
 
     def enable(self) -> None:
         self.calls.append("enable")
@@ -167,8 +168,8 @@ class FakeForceSensor:
     def rate(self) -> float:
         return self._rate
 
-    def identity(self) -> dict[str, str]:
-        return {"instrument": "fake force sensor"}
+    def identify(self) -> Identity:
+        return Identity("tests", "fake force sensor", "1")
 
     def start(self, rate_hz: float) -> None:
         self.calls.append(f"start {rate_hz:g}")
@@ -256,8 +257,8 @@ class FakeRheometer:
     _last_point: float = 0.0
     _points: list[StreamPoint] = field(default_factory=list)
 
-    def identify(self) -> str:
-        return "fake rheometer"
+    def identify(self) -> Identity:
+        return Identity("tests", "fake rheometer", "1")
 
     def _advance(self) -> None:
         """Bring the arm to the clock's time, streaming points on the way (every state change

@@ -8,6 +8,7 @@ import math
 import pytest
 
 from instrument.errors import ConfigError
+from instrument.identity import Identity
 from instrument.rheometer import Rheometer, RheometerConfig, RheometerStatus, StreamPoint
 
 
@@ -80,7 +81,7 @@ def test_status_busy_and_stream_point() -> None:
 
 def test_protocol_is_structural() -> None:
     class Partial:
-        def identify(self) -> str:
-            return "x"
+        def identify(self) -> Identity:
+            return Identity("x", "y", "1")
 
     assert not isinstance(Partial(), Rheometer)
