@@ -25,10 +25,10 @@ from instrument.store import RunDirectory, read_step
 
 def record(name: str, out: Path) -> Path:
     """The paper's protocol ``name`` on its simulated rig, recorded to ``out``."""
-    from gelrig.rigfile import default_rig, load_rig
     from gelrig.session import execute, metadata
     from instrument.clock import VirtualClock
     from protocols.events import RunState
+    from protocols.rigfile import default_rig, load_rig
     from protocols.spec import load_protocol, paper_protocol
 
     protocol = load_protocol(paper_protocol(name))

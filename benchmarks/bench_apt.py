@@ -104,7 +104,7 @@ def main() -> int:
     url = register(KDC101Simulator(clock), "bench")
     with serial.serial_for_url(url, timeout=1.0) as port:
         results["APT via kdc101sim:// (in-process)"] = rate(apt_trip(port), n, reps)
-    stage = KDC101(url, clock=clock)
+    stage = KDC101(url, clock=clock).open()
     results["KDC101.position() via kdc101sim://"] = rate(stage.position, n, reps)
     stage.close()
 
@@ -115,7 +115,7 @@ def main() -> int:
     try:
         with serial.serial_for_url(address, timeout=1.0) as port:
             results["APT via TCP server (socket://)"] = rate(apt_trip(port), n // 2, reps)
-        stage = KDC101(address)
+        stage = KDC101(address).open()
         results["KDC101.position() via TCP server"] = rate(stage.position, n // 2, reps)
         stage.close()
     finally:

@@ -119,7 +119,7 @@ def compression_run(rate: float = 1000.0, block_s: float = 10.0) -> tuple[float,
     with start_server(device) as server:
         channel = server.channel()
         options = nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name="")
-        with Usb6001ForceSensor(Usb6001Config(), LoadCellChain(), clock, options) as sensor:
+        with Usb6001ForceSensor(options, Usb6001Config(), LoadCellChain(), clock) as sensor:
             sensor.start(rate)
             sensor.tare(1.0)
             while clock.now() < T_END:

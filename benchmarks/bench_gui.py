@@ -118,11 +118,11 @@ def stream(app: QApplication, window: MainWindow, seconds: float) -> None:
 def headless(hold: float) -> None:
     """The same hold with no GUI (for the baseline): RSS before and after, as 'MB MB'."""
     from gelrig.factory import build_rig
-    from gelrig.rigfile import default_rig, load_rig
     from instrument.clock import PacedClock
     from instrument.store import RunDirectory
     from protocols.events import EventBus
     from protocols.recorder import Recorder
+    from protocols.rigfile import default_rig, load_rig
     from protocols.runner import Runner
     from protocols.spec import parse_protocol
 

@@ -19,7 +19,6 @@ from pathlib import Path
 
 from _timing import median_time
 
-from gelrig.rigfile import default_rig, load_rig
 from gelrig.session import execute
 from instrument import paper
 from instrument.clock import VirtualClock
@@ -27,6 +26,7 @@ from instrument.compression import ramp_hold
 from instrument.sliding import SlidingGeometry, shear_pass
 from instrument.store import RunDirectory
 from protocols.events import RunState
+from protocols.rigfile import default_rig, load_rig
 from protocols.spec import load_protocol, paper_protocol
 
 

@@ -94,7 +94,7 @@ def _pass_wall_time(rm: object) -> tuple[float, float]:
     start = cfg.lower_angle - (geo.psi0 + margin) / cfg.arm
     sim.cell.spin = sim.cell.spin.halt(clock.now())
     with SimulatorServer(sim) as server:
-        drv = MCR501.open(server.resource, clock, resource_manager=rm)
+        drv = MCR501(server.resource, clock, resource_manager=rm).open()
         try:
             # place the arm before contact, then lower to delta_max = 0.78 mm
             t0 = time.perf_counter()
@@ -141,10 +141,10 @@ def main(argv: list[str] | None = None) -> int:
         raw = _LineSocket(server.port)
         rows.append(("TCP, raw socket -> simulator", _rate(lambda: raw.ask(REQUEST), n, k)))
         raw.sock.close()
-        drv = MCR501.open(server.resource, clock, resource_manager=rm)
+        drv = MCR501(server.resource, clock, resource_manager=rm).open()
         rows.append(("TCP, driver via pyvisa-py -> simulator", _rate(drv.torque, n, k)))
         drv.close()
-    direct = MCR501(DirectLink(sim), clock)
+    direct = MCR501(DirectLink(sim), clock).open()
     rows.append(("in-process, driver via DirectLink", _rate(direct.torque, n, k)))
     rows.append(("in-process, simulator handler only", _rate(lambda: sim.handle(":TORQ[?]"), n, k)))
 

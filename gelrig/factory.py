@@ -13,19 +13,25 @@ import logging
 from collections.abc import Callable
 
 from drivers.mcr501.driver import MCR501
-from gelrig.rigfile import RigSpec
 from instrument.clock import Clock
 from instrument.contact import FloatArray
-from protocols.rig import CompressionLimits, CompressionRig, Rig, ShearLimits, ShearRig
+from instrument.identity import Identity
+from protocols.rig import CompressionRig, Rig, ShearRig
+from protocols.rigfile import CompressionRigSpec, RigSpec, ShearRigSpec
 
 log = logging.getLogger(__name__)
 
 
 def build_rig(spec: RigSpec, clock: Clock) -> Rig:
     """Connect every instrument of ``spec`` (starting simulators as needed)."""
-    if spec.kind == "shear":
+    if isinstance(spec, ShearRigSpec):
         return _shear(spec, clock)
     return _compression(spec, clock)
+
+
+def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:
+    """An instrument's entry in run.json: who it is, and how it was reached."""
+    return {**identity.as_dict(), "transport": transport, "address": address}
 
 
 def _close_all(closers: list[Callable[[], None]]) -> None:
@@ -36,55 +42,51 @@ def _close_all(closers: list[Callable[[], None]]) -> None:
             log.exception("cleanup failed")
 
 
-def _shear(spec: RigSpec, clock: Clock) -> ShearRig:
-    from simulators.mcr501.config import SimConfig
+def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
+    from simulators.mcr501.config import PAPER_MATERIAL, SimConfig
     from simulators.mcr501.instrument import MCR501Simulator
     from simulators.mcr501.link import DirectLink
     from simulators.mcr501.server import SimulatorServer
 
-    entry = spec.instruments["rheometer"]
+    entry, truth = spec.rheometer, spec.simulator
     closers: list[Callable[[], None]] = []
     try:
         if entry.simulated:
-            sim_args = {k: spec.simulator[k] for k in ("r1", "r2", "mu", "lower_angle",
-                                                        "touch_gap")}
-            if "material" in spec.simulator:
-                sim_args["material"] = spec.simulator["material"]
-            sim = MCR501Simulator(clock, SimConfig(**sim_args, seed=int(spec.simulator["seed"]),
-                                                   arm=entry.config.arm))
-            if spec.simulator["link"] == "direct":
+            sim = MCR501Simulator(clock, SimConfig(
+                r1=truth.r1, r2=truth.r2, mu=truth.mu, lower_angle=truth.lower_angle,
+                touch_gap=truth.touch_gap, seed=int(truth.seed), arm=entry.config.arm,
+                material=truth.material or PAPER_MATERIAL))
+            if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"
             else:
                 server = SimulatorServer(sim).start()
                 closers.append(server.close)
-                driver = MCR501.open(server.resource, clock, entry.config)
+                driver = MCR501(server.resource, clock, entry.config)
                 where = server.resource
         else:
-            driver = MCR501.open(entry.address, clock, entry.config,
-                                 backend=entry.extra.get("backend", "@py"))
+            driver = MCR501(entry.address, clock, entry.config, backend=entry.backend)
             where = entry.address
         closers.insert(0, driver.close)
+        driver.open()
         identities: dict[str, object] = {
-            "rheometer": {"identity": driver.identify(), "transport": entry.transport,
-                          "address": where}}
+            "rheometer": _record(driver.identify(), entry.transport, where)}
     except BaseException:
         _close_all(closers)
         raise
-    assert isinstance(spec.limits, ShearLimits)
     return ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
 
 
-def _compression(spec: RigSpec, clock: Clock) -> CompressionRig:
+def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
     from drivers.kdc101 import KDC101
     from drivers.usb6001.sensor import Usb6001ForceSensor
     from instrument.errors import ConfigError
     from simulators.kdc101 import KDC101Simulator, register, unregister
-    from simulators.usb6001.rig import SIM_OFFSET, compression_daq
+    from simulators.usb6001.rig import PLATES, SIM_OFFSET, compression_daq
     from simulators.usb6001.server import start_server
 
-    stage_entry, force_entry = spec.instruments["stage"], spec.instruments["force"]
-    chain = force_entry.extra["chain"]
+    stage_entry, force_entry = spec.stage, spec.force
+    chain = force_entry.chain
     closers: list[Callable[[], None]] = []
     identities: dict[str, object] = {}
     try:
@@ -97,36 +99,35 @@ def _compression(spec: RigSpec, clock: Clock) -> CompressionRig:
             address = stage_entry.address
         stage = KDC101(address, stage_entry.config, clock)
         closers.append(stage.close)
-        identities["stage"] = {**stage.identify().__dict__, "transport": stage_entry.transport,
-                               "address": address}
+        stage.open()
+        identities["stage"] = _record(stage.identify(), stage_entry.transport, address)
         if force_entry.simulated:
             if not stage_entry.simulated:
                 raise ConfigError("force.transport", "simulator", "a simulated force needs "
                                   "the simulated stage (its plate drives the contact)", spec.source)
-            sim = spec.simulator
+            truth = spec.simulator
             home = stage_sim.config.home_offset_m
 
             def plate(ts: FloatArray) -> FloatArray:  # homed stage frame, fixed physically
                 return stage_sim.positions_at(ts) - home
 
-            kwargs = {"material": sim["material"]} if "material" in sim else {}
             device = compression_daq(
-                clock, plate, first_touch=sim["first_touch"], vectorized=True,
-                sphere_radius=sim["sphere_diameter"] / 2, seed=int(sim["seed"]),
+                clock, plate, first_touch=truth.first_touch, vectorized=True,
+                sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
                 chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
-                noise_rms=sim["noise"] * chain.sensitivity, **kwargs)
+                noise_rms=truth.noise * chain.sensitivity, material=truth.material or PLATES)
             server = start_server(device)
             closers.append(server.stop)
             force_address = f"grpc://{server.address}"
         else:
             force_address = force_entry.address if force_entry.transport == "grpc" else "local"
-        force = Usb6001ForceSensor.open(force_address, force_entry.config, chain, clock)
+        force = Usb6001ForceSensor(force_address, force_entry.config, chain, clock)
         closers.append(force.close)
-        identities["force"] = {**force.identity(), "transport": force_entry.transport}
+        force.open()
+        identities["force"] = _record(force.identify(), force_entry.transport, force_address)
     except BaseException:
         _close_all(closers)
         raise
-    assert isinstance(spec.limits, CompressionLimits)
     # stage.close and force.close run in CompressionRig.close; the rest (servers) after them
     hooks = [c for c in closers if c not in (stage.close, force.close)]
     return CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,

@@ -19,12 +19,12 @@ from typing import Any
 
 from gelrig import __version__
 from gelrig.factory import build_rig
-from gelrig.rigfile import RigSpec
 from instrument.clock import Clock, RealClock
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, RunState
+from protocols.rigfile import RigSpec
 from protocols.runner import Runner
 from protocols.session import RecordedRun
 from protocols.spec import ProtocolSpec

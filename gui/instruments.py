@@ -18,8 +18,8 @@ from PySide6.QtWidgets import (
 )
 
 from gui.fmt import quantity
-from gui.services import RigSpecLike
 from protocols.rig import Rig
+from protocols.rigfile import RigSpec
 
 #: instrument -> (reading key, label, SI unit) shown live.
 READOUTS: dict[str, tuple[tuple[str, str, str], ...]] = {
@@ -71,7 +71,7 @@ class InstrumentsPanel(QGroupBox):
         self.values: dict[str, QLabel] = {}
         self.set_connected(False)
 
-    def set_spec(self, spec: RigSpecLike) -> None:
+    def set_spec(self, spec: RigSpec) -> None:
         mode = "simulated" if spec.simulated else "hardware"
         self.rig_label.setText(f"<b>{html.escape(spec.name)}</b><br>{html.escape(spec.source)}"
                                f"<br>{spec.kind} rig, {mode}")

@@ -15,14 +15,9 @@ _TRIPPED = "background:#c62828; color:white; font-weight:bold; padding:6px; bord
 
 
 def limits_text(limits: CompressionLimits | ShearLimits | None) -> str:
-    if isinstance(limits, CompressionLimits):
-        return (f"force ≤ {quantity(limits.max_force, 'N')}, overlap ≤ "
-                f"{quantity(limits.max_overlap, 'm')}")
-    if isinstance(limits, ShearLimits):
-        return (f"torque ≤ {quantity(limits.max_torque, 'N*m')}, normal force ≤ "
-                f"{quantity(limits.max_normal_force, 'N')}, overlap ≤ "
-                f"{quantity(limits.max_overlap, 'm')}")
-    return "no rig"
+    if limits is None:
+        return "no rig"
+    return ", ".join(f"{what} ≤ {quantity(value, unit)}" for what, value, unit in limits.guards())
 
 
 class InterlockBanner(QLabel):

@@ -98,17 +98,15 @@ class ManualPanel(QGroupBox):
             target = e["target"].value() * 1e-3
 
             def run(rig: Rig) -> None:
-                r = _compression(rig)
-                r.stage.set_velocity(speed, r.limits.acceleration)
                 if relative is None:
-                    r.stage.move_to(target, wait=False)
+                    _compression(rig).move_plate(speed, target=target)
                 else:
-                    r.stage.move_by(relative, wait=False)
+                    _compression(rig).move_plate(speed, by=relative)
             return run
 
         grid.addWidget(QLabel("<b>Stage</b>"), 0, 0)
         grid.addWidget(self._button("home", "Home", "stage home",
-                                    lambda: lambda rig: _compression(rig).stage.home(wait=False)),
+                                    lambda: lambda rig: _compression(rig).home()),
                        0, 1)
         grid.addWidget(QLabel("speed"), 1, 0)
         grid.addWidget(e["speed"], 1, 1, 1, 2)
@@ -126,7 +124,7 @@ class ManualPanel(QGroupBox):
 
         def tare() -> Command:
             duration = e["tare"].value()
-            return lambda rig: _compression(rig).force.tare(duration)
+            return lambda rig: _compression(rig).tare(duration)
 
         grid.addWidget(self._button("tare", "Tare", "load-cell tare", tare), 5, 2)
 
@@ -138,15 +136,15 @@ class ManualPanel(QGroupBox):
 
         def set_gap() -> Command:
             gap = e["gap"].value() * 1e-3
-            return lambda rig: _shear(rig).rheometer.set_gap(gap, wait=False)
+            return lambda rig: _shear(rig).set_gap(gap)
 
         def rotate() -> Command:
             speed = e["speed"].value() * 1e-3
-            return lambda rig: _shear(rig).rheometer.rotate(speed)
+            return lambda rig: _shear(rig).rotate(speed)
 
         grid.addWidget(QLabel("<b>Rheometer</b>"), 0, 0)
         grid.addWidget(self._button("zero_gap", "Reference gap", "rheometer gap reference",
-                                    lambda: lambda rig: _shear(rig).rheometer.zero_gap()), 0, 1)
+                                    lambda: lambda rig: _shear(rig).zero_gap()), 0, 1)
         grid.addWidget(QLabel("gap"), 1, 0)
         grid.addWidget(e["gap"], 1, 1)
         grid.addWidget(self._button("set_gap", "Set gap", "rheometer gap", set_gap), 1, 2)
@@ -154,7 +152,7 @@ class ManualPanel(QGroupBox):
         grid.addWidget(e["speed"], 2, 1)
         grid.addWidget(self._button("rotate", "Rotate", "rheometer rotate", rotate), 2, 2)
         grid.addWidget(self._button("hold", "Hold position", "rheometer hold",
-                                    lambda: lambda rig: _shear(rig).rheometer.hold()), 3, 1)
+                                    lambda: lambda rig: _shear(rig).hold()), 3, 1)
 
     def set_enabled(self, enabled: bool) -> None:
         """Manual commands only while connected and no protocol runs."""

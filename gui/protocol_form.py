@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (
 
 from gui.fmt import entry_text, entry_value, quantity
 from instrument.errors import ConfigError
-from instrument.fields import Field
+from instrument.fields import Field, Where
 from protocols.spec import ProtocolSpec, parse_protocol
 from protocols.steps import KINDS
 
@@ -48,7 +48,7 @@ class Entry:
 
     @property
     def name(self) -> str:
-        return f"step[{self.step}].{self.key}"
+        return Where(f"step[{self.step}]").name(self.key)
 
     def value(self) -> Any:
         text = self.edit.text().strip()
@@ -95,7 +95,7 @@ class ProtocolForm(QWidget):
         for e in self.entries:
             if e.step == step and e.key == key:
                 return e
-        raise KeyError(f"step[{step}].{key}")
+        raise KeyError(Where(f"step[{step}]").name(key))
 
     def set_table(self, table: dict[str, Any], source: str) -> None:
         """Show a protocol file's table (from TOML) for editing."""
@@ -169,7 +169,7 @@ class ProtocolForm(QWidget):
             message = ""
             if e.field is not None and e.edit.text().strip():
                 try:
-                    e.field.parse(e.value(), f"step[{e.step}].")
+                    e.field.parse(e.value(), Where(f"step[{e.step}]"))
                 except ConfigError as exc:
                     message = exc.allowed
             e.set_error(message)

@@ -14,19 +14,19 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 
 from gui.bridge import EventBridge
 from gui.rundata import RunData
-from gui.services import RigSpecLike, Services
+from gui.services import Services
 from gui.tasks import RigThread
 from instrument.clock import Clock, PacedClock, RealClock
-from instrument.errors import GelrigError, InstrumentError
+from instrument.errors import GelrigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, Progress, RunState
-from protocols.rig import CompressionRig, Rig, ShearRig
+from protocols.rig import Rig
+from protocols.rigfile import RigSpec
 from protocols.session import RecordedRun
 from protocols.spec import ProtocolSpec
 
@@ -71,7 +71,7 @@ class RigSession(QObject):
     def __init__(self, services: Services, parent: QObject | None = None):
         super().__init__(parent)
         self.services = services
-        self.spec: RigSpecLike | None = None
+        self.spec: RigSpec | None = None
         self.rig: Rig | None = None
         self.pace = services.pace
         self.worker = RigThread(self)
@@ -82,7 +82,6 @@ class RigSession(QObject):
         self._bridge: EventBridge | None = None
         self._connecting = False
         self._poll_pending = False
-        self._force_running = False  # touched on the rig thread only
         self._last_poll = time.monotonic()
         self._monitor = QTimer(self)
         self._monitor.setInterval(round(MONITOR_PERIOD * 1000))
@@ -97,7 +96,7 @@ class RigSession(QObject):
     def clock(self) -> Clock | None:
         return self.rig.clock if self.rig is not None else None
 
-    def load_rig(self, path: Path) -> RigSpecLike:
+    def load_rig(self, path: Path) -> RigSpec:
         """Validate a rig file and make it the one to connect (raises ConfigError)."""
         if self.rig is not None or self._connecting:
             raise GelrigError("disconnect the current rig first")
@@ -116,7 +115,6 @@ class RigSession(QObject):
     def _on_connected(self, rig: Rig) -> None:
         self._connecting = False
         self.rig = rig
-        self._force_running = False
         self._monitor.start()
         self.connected.emit(rig)
 
@@ -189,28 +187,7 @@ class RigSession(QObject):
             clock.sleep(min(now - self._last_poll, 1.0))
         self._last_poll = now
         values: dict[str, float] = {"t_s": clock.now()}
-        if isinstance(rig, CompressionRig):
-            status = rig.stage.status()
-            values.update(position_m=rig.stage.position(), moving=float(status.busy),
-                          homed=float(status.homed))
-            try:
-                if not self._force_running:
-                    rig.force.start(MONITOR_RATE)
-                    self._force_running = True
-                block = rig.force.read_block(None)
-            except InstrumentError:
-                self._force_running = False  # an overflow or a stopped task: restart next time
-                raise
-            if len(block):
-                tail = max(1, round(0.1 * rig.force.rate))
-                values["force_N"] = float(np.mean(block.force[-tail:]))
-        elif isinstance(rig, ShearRig):
-            rheo = rig.rheometer
-            rheo_status = rheo.status()
-            values.update(gap_m=rheo.gap(), angle_rad=rheo.angle(), theta_m=rheo.theta(),
-                          torque_Nm=rheo.torque(), normal_force_N=rheo.normal_force(),
-                          moving=float(rheo_status.busy),
-                          gap_referenced=float(rheo_status.gap_referenced))
+        values.update(rig.readings(MONITOR_RATE))
         return values
 
     # ---- a run --------------------------------------------------------------------------
@@ -236,11 +213,8 @@ class RigSession(QObject):
         self.state = RunState.RUNNING
 
         def task() -> RunState:
-            try:
-                self._drain_monitor(rig)
-                return recorded.run()
-            finally:
-                self._force_running = False
+            rig.end_monitoring()  # the run starts its own acquisition
+            return recorded.run()
 
         self.worker.submit(task, done=lambda state: self._run_done(state, recorded.reason),
                            failed=lambda exc: self._run_done(RunState.FAILED,
@@ -248,13 +222,6 @@ class RigSession(QObject):
         self.run_started.emit(run.path)
         return run.path
 
-    def _drain_monitor(self, rig: Rig) -> None:
-        """Drop the idle readout's unread samples so the run's first block starts now."""
-        if isinstance(rig, CompressionRig) and self._force_running:
-            try:
-                rig.force.read_block(None)
-            except InstrumentError:
-                rig.force.start(rig.force.rate or MONITOR_RATE)
 
     def _on_event(self, event: object) -> None:
         self.run_event.emit(event)

@@ -10,30 +10,12 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from instrument.clock import Clock
-from protocols.rig import CompressionLimits, Rig, ShearLimits
+from protocols.rig import Rig
+from protocols.rigfile import RigSpec
 from protocols.spec import ProtocolSpec
-
-
-class RigSpecLike(Protocol):
-    """The parts of a validated rig file the GUI reads (gelrig.rigfile.RigSpec meets it)."""
-
-    @property
-    def kind(self) -> str: ...
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def source(self) -> str: ...
-
-    @property
-    def simulated(self) -> bool: ...
-
-    @property
-    def limits(self) -> CompressionLimits | ShearLimits: ...
 
 
 @dataclass(frozen=True)
@@ -45,9 +27,9 @@ class Services:
     """
 
     rig_file: Path
-    load_rig: Callable[[Path], RigSpecLike]
-    build_rig: Callable[[RigSpecLike, Clock], Rig]
-    metadata: Callable[[ProtocolSpec, RigSpecLike, str], Mapping[str, Any]]
+    load_rig: Callable[[Path], RigSpec]
+    build_rig: Callable[[RigSpec, Clock], Rig]
+    metadata: Callable[[ProtocolSpec, RigSpec, str], Mapping[str, Any]]
     default_run_dir: Callable[[ProtocolSpec], Path]
     pace: float = 1.0
     rig_dir: Path | None = None

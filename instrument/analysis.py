@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares
 
+from instrument.binning import bin_means
 from instrument.contact import (
     FloatArray,
     Material,
@@ -31,6 +31,7 @@ from instrument.contact import (
     hertz_prefactor,
 )
 from instrument.errors import ConfigError
+from instrument.hold import find_hold
 
 #: Bins the grid search averages the hold into (the refinement uses every sample).
 _GRID_BINS = 600
@@ -38,32 +39,6 @@ _GRID_BINS = 600
 _REFINE_BINS = 20_000
 #: Minimum number of hold samples a fit accepts.
 MIN_HOLD_SAMPLES = 20
-
-
-def find_hold_start(
-    t: ArrayLike, delta: ArrayLike | None = None, force: ArrayLike | None = None
-) -> int:
-    """Index of the first sample of the hold.
-
-    With the overlap: where it stops increasing (first sample within a small tolerance of its
-    maximum). Without it: where the smoothed force first comes within its noise of the peak,
-    which ends the ramp of a ramp-and-hold (the force rises fast while loading and relaxes
-    slowly while held).
-    """
-    if delta is not None:
-        d = np.asarray(delta, dtype=float)
-        top = float(np.max(d))
-        tol = 1e-4 * abs(top) + 1e-9
-        return int(np.argmax(d >= top - tol))
-    if force is None:
-        raise ValueError("find_hold_start needs the overlap or the force")
-    f = np.asarray(force, dtype=float)
-    width = max(1, min(f.size // 1000, 51))
-    smooth = uniform_filter1d(f, width, mode="nearest")
-    # The rise is steep and the hold's decay slow: take the first sample within the noise of
-    # the peak, not the noisy argmax on the flat top (noise from the sample-to-sample spread).
-    sigma = 1.4826 * float(np.median(np.abs(np.diff(f)))) / np.sqrt(2.0) if f.size > 1 else 0.0
-    return int(np.argmax(smooth >= smooth.max() - 4.0 * sigma / np.sqrt(width)))
 
 
 def modulus_history(
@@ -137,16 +112,6 @@ def _grid_start(t: FloatArray, g: FloatArray, terms: int) -> tuple[float, ...]:
     return tuple(params)
 
 
-def _bin_average(t: FloatArray, g: FloatArray, bins: int) -> tuple[FloatArray, FloatArray]:
-    if t.size <= bins:
-        return t, g
-    edges = np.linspace(0, t.size, bins + 1).astype(int)
-    counts = np.diff(edges)
-    tb = np.add.reduceat(t, edges[:-1]) / counts
-    gb = np.add.reduceat(g, edges[:-1]) / counts
-    return tb, gb
-
-
 def fit_relaxation(
     t_hold: ArrayLike, g_hold: ArrayLike, terms: int = 1, t0: float = 0.0
 ) -> RelaxationFit:
@@ -162,11 +127,11 @@ def fit_relaxation(
     t, g = t_all[ok], g_all[ok]
     if t.size < MIN_HOLD_SAMPLES:
         raise ConfigError("hold", t.size, f"need at least {MIN_HOLD_SAMPLES} samples to fit")
-    start = _grid_start(*_bin_average(t, g, _GRID_BINS), terms)
+    start = _grid_start(*bin_means(t, g, _GRID_BINS), terms)
     # Refine on equal-count bin means: for white noise the same estimate and, from the
     # binned residuals, the same covariance, at a fraction of the cost for long records.
     t_raw, g_raw = t, g
-    t, g = _bin_average(t_raw, g_raw, _REFINE_BINS)
+    t, g = bin_means(t_raw, g_raw, _REFINE_BINS)
 
     def residual(p: FloatArray) -> FloatArray:
         out = np.full_like(t, p[0])
@@ -223,7 +188,8 @@ def fit_hold(
     terms: int = 1,
     delta: ArrayLike | None = None,
 ) -> RelaxationFit:
-    """Find the hold in a ramp-and-hold record, back-calculate G(t) and fit it.
+    """Find the hold in a ramp-and-hold record (:func:`instrument.hold.find_hold`; a retract
+    after it is left out), back-calculate G(t) and fit it.
 
     With the overlap history, the result also carries the ramp-corrected amplitudes
     (``extra["relax_ramp_corrected"]``).
@@ -232,10 +198,13 @@ def fit_hold(
     f = np.asarray(force, dtype=float)
     if t.shape != f.shape:
         raise ConfigError("force_N", f.size, f"needs one value per time sample ({t.size})")
-    start = find_hold_start(t, delta=delta, force=f if delta is None else None)
+    span = find_hold(delta=delta, force=f if delta is None else None)
+    if span.samples < MIN_HOLD_SAMPLES:
+        raise ConfigError("hold", span.samples, f"need at least {MIN_HOLD_SAMPLES} samples to fit")
+    start, end = span.start, span.end
     t0 = float(t[start])
-    g = modulus_history(f[start:], depth, radius, nu)
-    fit = fit_relaxation(t[start:] - t0, g, terms=terms, t0=t0)
+    g = modulus_history(f[start:end], depth, radius, nu)
+    fit = fit_relaxation(t[start:end] - t0, g, terms=terms, t0=t0)
     if delta is None:
         return fit
     corrected = ramp_corrected(fit, t[: start + 1], np.asarray(delta, float)[: start + 1])

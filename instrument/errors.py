@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 
 class GelrigError(Exception):
     """Base of every error gelrig raises on purpose."""
@@ -19,7 +21,20 @@ class ConfigError(GelrigError, ValueError):
         self.allowed = allowed
         self.source = source
         where = f"{source}: " if source else ""
-        super().__init__(f"{where}{field} = {value!r}: {allowed}")
+        super().__init__(f"{where}{field} = {shown(value)}: {allowed}")
+
+
+def shown(value: object) -> str:
+    """A value as a TOML file would hold it: strings in double quotes, floats short."""
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, float):
+        text = repr(value)
+        return text if len(text) <= 12 else f"{value:.6g}"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 class InstrumentError(GelrigError):

@@ -15,23 +15,22 @@ USB-6001 driver in drivers/usb6001) and so can any test double.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from instrument.errors import ConfigError, InstrumentError, InstrumentTimeout
-from instrument.fields import Field
-from instrument.units import to_si
+from instrument.errors import InstrumentError, InstrumentTimeout
+from instrument.fields import Config, Field, param
+from instrument.identity import Identity
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
-class LoadCellChain:
+class LoadCellChain(Config):
     """Calibration of the force chain; SI inside (N, V, V/V, Hz).
 
     ``rated_output`` is the bridge output at rated load per volt of excitation (2 mV/V is
@@ -39,16 +38,19 @@ class LoadCellChain:
     as one pole; a driver does not use it).
     """
 
-    capacity: float = 2.5
-    rated_output: float = 2e-3
-    excitation: float = 5.0
-    gain: float = 1000.0
-    offset: float = 0.0
-    bandwidth: float = 1000.0
+    section: ClassVar[str] = "force.chain"
 
-    def __post_init__(self) -> None:
-        for spec in _FIELDS:
-            spec.check(getattr(self, spec.key))
+    capacity: float = param(Field("capacity", "N", 2.5, 0.0, 1e5, lo_open=True,
+                                  help="rated load of the cell"))
+    rated_output: float = param(Field("rated_output", "V/V", 2e-3, 0.0, 0.01, lo_open=True,
+                                      help="bridge output at rated load per volt of excitation"))
+    excitation: float = param(Field("excitation", "V", 5.0, 0.0, 15.0, lo_open=True))
+    gain: float = param(Field("gain", "V/V", 1000.0, 0.0, 1e5, lo_open=True,
+                              help="conditioner gain"))
+    offset: float = param(Field("offset", "V", 0.0, -10.5, 10.5,
+                                help="conditioner output at no load"))
+    bandwidth: float = param(Field("bandwidth", "Hz", 1000.0, 0.0, 1e6, lo_open=True,
+                                   help="conditioner -3 dB frequency"))
 
     @property
     def sensitivity(self) -> float:
@@ -71,39 +73,6 @@ class LoadCellChain:
         """
         z = self.offset if zero is None else zero
         return (np.asarray(volts, dtype=float) - z) / self.sensitivity
-
-    @classmethod
-    def from_mapping(
-        cls, mapping: Mapping[str, object], source: str | None = None
-    ) -> LoadCellChain:
-        """Build from a rig-file table; values may carry units ("2 mV/V", "5 V", "1 kHz").
-
-        Unknown keys and out-of-range values raise ConfigError naming field, value and range.
-        """
-        known = {spec.key: spec for spec in _FIELDS}
-        for key in mapping:
-            if key not in known:
-                raise ConfigError(key, mapping[key], f"unknown field; allowed: {', '.join(known)}",
-                                  source)
-        values: dict[str, float] = {}
-        for key, raw in mapping.items():
-            spec = known[key]
-            if not isinstance(raw, str | int | float):
-                raise ConfigError(key, raw, f"expected a number in {spec.unit}", source)
-            value = to_si(raw, spec.unit, key, source)
-            values[key] = spec.check(value, source=source)
-        return cls(**values)
-
-
-_FIELDS = (
-    Field("capacity", "N", lo=0.0, hi=1e5, lo_open=True),
-    Field("rated_output", "V/V", lo=0.0, hi=0.01, lo_open=True),
-    Field("excitation", "V", lo=0.0, hi=15.0, lo_open=True),
-    Field("gain", "V/V", lo=0.0, hi=1e5, lo_open=True),
-    Field("offset", "V", lo=-10.5, hi=10.5),
-    Field("bandwidth", "Hz", lo=0.0, hi=1e6, lo_open=True),
-)
-
 
 @dataclass(frozen=True)
 class ForceBlock:
@@ -167,8 +136,8 @@ class ForceSensor(Protocol):
         """Sample rate while running (Hz)."""
         ...
 
-    def identity(self) -> dict[str, str]:
-        """What is measuring: instrument, device, serial, channel, transport."""
+    def identify(self) -> Identity:
+        """What is measuring: model and serial; device, channel and transport in ``extra``."""
         ...
 
     def start(self, rate_hz: float) -> None: ...

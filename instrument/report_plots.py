@@ -9,24 +9,17 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from matplotlib.figure import Figure
 
 from instrument.analysis import RelaxationFit
+from instrument.binning import bin_means
 from instrument.contact import FloatArray
 from instrument.plots import save_figure
 
+#: Bin means drawn for a long record (its samples are drawn thinned).
+_DRAWN_BINS = 2000
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
             "tab:pink", "tab:gray", "tab:olive", "tab:cyan")
-
-
-def _bins(t: FloatArray, y: FloatArray, n: int = 2000) -> tuple[FloatArray, FloatArray]:
-    """Equal-count bin means, for drawing long records."""
-    if t.size <= n:
-        return t, y
-    edges = np.linspace(0, t.size, n + 1).astype(int)
-    counts = np.diff(edges)
-    return (np.add.reduceat(t, edges[:-1]) / counts, np.add.reduceat(y, edges[:-1]) / counts)
 
 
 def plot_hold_fits(
@@ -35,7 +28,7 @@ def plot_hold_fits(
     """G(t) over the hold with its Prony fits (top) and the fits' residuals (bottom)."""
     fig = Figure(figsize=(7.0, 6.0), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
-    tb, gb = _bins(t, g)
+    tb, gb = bin_means(t, g, _DRAWN_BINS)
     step = max(1, t.size // 4000)
     top.plot(t[::step], g[::step] / 1e3, ".", ms=1.5, color="0.6", label="back-calculated G")
     for fit, colour in zip(fits, ("tab:red", "tab:blue"), strict=False):

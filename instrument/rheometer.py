@@ -13,13 +13,11 @@ constant in code.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from typing import Protocol, runtime_checkable
+from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
 
-from instrument.errors import ConfigError
-from instrument.fields import Field
-from instrument.units import to_si
+from instrument.fields import Config, Field, Where, param
+from instrument.identity import Identity
 
 
 @dataclass(frozen=True)
@@ -75,8 +73,8 @@ class Rheometer(Protocol):
         """Calibration and limits in force."""
         ...
 
-    def identify(self) -> str:
-        """Model, serial number and firmware, as one string."""
+    def identify(self) -> Identity:
+        """Model, serial number and firmware."""
         ...
 
     def status(self) -> RheometerStatus:
@@ -140,32 +138,8 @@ class Rheometer(Protocol):
         ...
 
 
-_BOUNDS: dict[str, Field] = {
-    f.key: f
-    for f in (
-        Field("arm", "m", lo=1e-3, hi=0.5),
-        Field("torque_range", "N*m", lo=0.0, hi=1.0, lo_open=True),
-        Field("torque_resolution", "N*m", lo=0.0, hi=1e-3, lo_open=True),
-        Field("normal_force_range", "N", lo=0.0, hi=1000.0, lo_open=True),
-        Field("normal_force_resolution", "N", lo=0.0, hi=1.0, lo_open=True),
-        Field("max_speed", "m/s", lo=0.0, hi=1.0, lo_open=True),
-        Field("gap_min", "m", lo=0.0, hi=0.2),
-        Field("gap_max", "m", lo=0.0, hi=0.2, lo_open=True),
-        Field("overlap_limit", "m", lo=0.0, hi=0.01, lo_open=True),
-        Field("touch_gap", "m", lo=0.0, hi=0.2),
-        Field("timeout", "s", lo=0.0, hi=600.0, lo_open=True),
-        Field("gap_move_timeout", "s", lo=0.0, hi=86400.0, lo_open=True),
-        Field("poll_interval", "s", lo=0.0, hi=10.0, lo_open=True),
-    )
-}
-
-
-def _check(name: str, value: float, source: str | None) -> None:
-    _BOUNDS[name].check(value, source=source)
-
-
 @dataclass(frozen=True)
-class RheometerConfig:
+class RheometerConfig(Config):
     """Calibration, limits and timing of the shear-rig rheometer (SI units).
 
     Defaults marked UNVERIFIED in instruments.md are placeholders for the rig file to confirm:
@@ -176,64 +150,37 @@ class RheometerConfig:
     injected clock.
     """
 
-    arm: float = 0.027
-    torque_range: float = 0.2  # UNVERIFIED
-    torque_resolution: float = 1e-9  # UNVERIFIED
-    normal_force_range: float = 50.0  # UNVERIFIED
-    normal_force_resolution: float = 1e-5  # UNVERIFIED
-    max_speed: float = 5e-3  # UNVERIFIED (about 1.8 rpm at the 27 mm arm)
-    gap_min: float = 0.0  # UNVERIFIED
-    gap_max: float = 0.05  # UNVERIFIED
-    overlap_limit: float = 1.2e-3
-    touch_gap: float | None = None
-    timeout: float = 2.0
-    gap_move_timeout: float = 120.0
-    poll_interval: float = 0.05
+    section: ClassVar[str] = "rheometer"
 
-    def __post_init__(self) -> None:
-        self._validate(None)
+    arm: float = param(Field("arm", "m", 0.027, 1e-3, 0.5, help="arm length", display="mm"))
+    torque_range: float = param(Field("torque_range", "N*m", 0.2, 0.0, 1.0, lo_open=True,
+                                      help="UNVERIFIED"))
+    torque_resolution: float = param(Field("torque_resolution", "N*m", 1e-9, 0.0, 1e-3,
+                                           lo_open=True, help="UNVERIFIED"))
+    normal_force_range: float = param(Field("normal_force_range", "N", 50.0, 0.0, 1000.0,
+                                            lo_open=True, help="UNVERIFIED"))
+    normal_force_resolution: float = param(Field("normal_force_resolution", "N", 1e-5, 0.0, 1.0,
+                                                 lo_open=True, help="UNVERIFIED"))
+    max_speed: float = param(Field("max_speed", "m/s", 5e-3, 0.0, 1.0, lo_open=True,
+                                   help="UNVERIFIED (about 1.8 rpm at the 27 mm arm)",
+                                   display="mm/s"))
+    gap_min: float = param(Field("gap_min", "m", 0.0, 0.0, 0.2, help="UNVERIFIED",
+                                 display="mm"))
+    gap_max: float = param(Field("gap_max", "m", 0.05, 0.0, 0.2, lo_open=True,
+                                 help="UNVERIFIED", display="mm"))
+    overlap_limit: float = param(Field("overlap_limit", "m", 1.2e-3, 0.0, 0.01, lo_open=True,
+                                       display="mm"))
+    touch_gap: float | None = param(Field("touch_gap", "m", None, 0.0, 0.2, optional=True,
+                                          help="gap at first touch, if known", display="mm"))
+    timeout: float = param(Field("timeout", "s", 2.0, 0.0, 600.0, lo_open=True,
+                                 help="deadline of one reply on the wire"))
+    gap_move_timeout: float = param(Field("gap_move_timeout", "s", 120.0, 0.0, 86400.0,
+                                          lo_open=True))
+    poll_interval: float = param(Field("poll_interval", "s", 0.05, 0.0, 10.0, lo_open=True))
 
-    def _validate(self, source: str | None) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if value is None and f.name == "touch_gap":
-                continue
-            _check(f.name, float(value), source)
+    def validate(self, where: Where) -> None:
         if self.gap_min >= self.gap_max:
-            raise ConfigError(
-                "gap_min", self.gap_min, f"must be < gap_max = {self.gap_max:g} m", source
-            )
-
-    @classmethod
-    def from_mapping(
-        cls, mapping: Mapping[str, object], source: str | None = None
-    ) -> RheometerConfig:
-        """Build from a rig-file table; values are SI numbers or strings like ``"27 mm"``.
-
-        Unknown keys and out-of-range values raise ConfigError naming ``source``, the field,
-        the value and the allowed range.
-        """
-        known = {f.name for f in fields(cls)}
-        values: dict[str, float | None] = {}
-        for key, raw in mapping.items():
-            if key not in known:
-                raise ConfigError(
-                    key, raw, f"unknown field; allowed: {', '.join(sorted(known))}", source
-                )
-            if key == "touch_gap" and raw is None:
-                values[key] = None
-                continue
-            if not isinstance(raw, str | int | float):
-                raise ConfigError(key, raw, f"expected a number in {_BOUNDS[key].unit}", source)
-            value = to_si(raw, _BOUNDS[key].unit, key, source)
-            _check(key, value, source)
-            values[key] = value
-        try:
-            return cls(**values)  # type: ignore[arg-type]
-        except ConfigError as exc:
-            if exc.source is None and source is not None:
-                raise ConfigError(exc.field, exc.value, exc.allowed, source) from None
-            raise
+            raise where.error("gap_min", self.gap_min, f"must be < gap_max = {self.gap_max:g} m")
 
     def speed_allowed(self, speed: float) -> bool:
         """True if ``|speed|`` (m/s) is within ``max_speed``."""

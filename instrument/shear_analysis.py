@@ -7,7 +7,7 @@ Definitions (docs/decisions/0030):
   are medians over the first :data:`BASELINE_FRACTION` of the moving part of the pass, well
   before contact, so the bearing drag and any normal-force offset drop out.
 - Contact: a sample is in contact when ``|F_h|`` or ``F_v`` exceeds :data:`K_SIGMA` times its
-  noise (robust standard deviation of the baseline window). The deformed contact length
+  noise (:func:`instrument.noise.robust_sigma` of the baseline window). The deformed contact length
   ``l_c`` is the travel from the first such sample to the last (the crossings are
   interpolated linearly between samples).
 - ``l_g`` (the paper's construction): the clockwise and anticlockwise passes at the same
@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from instrument.contact import FloatArray
 from instrument.errors import ConfigError
+from instrument.noise import resolution_step, robust_sigma
 
 BoolArray = NDArray[np.bool_]
 
@@ -103,13 +104,6 @@ class PassForces:
     baseline_end: int
 
 
-def _robust_sigma(x: FloatArray) -> float:
-    """Noise from the sample-to-sample spread (insensitive to slow drifts and offsets)."""
-    if x.size < 3:
-        return math.nan
-    return float(1.4826 * np.median(np.abs(np.diff(x) - np.median(np.diff(x)))) / math.sqrt(2))
-
-
 def moving_mask(p: RecordedPass, arm: float) -> BoolArray:
     """Samples taken while the arm turns at (at least half) the pass speed."""
     rate = np.gradient(p.angle, p.t) * arm * p.direction if p.t.size > 1 else np.zeros(p.t.size)
@@ -127,11 +121,9 @@ def pass_forces(p: RecordedPass, arm: float) -> PassForces:
     n0 = float(np.median(p.normal_force[window]))
     f_h = p.direction * (p.torque - m0) / arm
     f_v = p.normal_force - n0
-    noise_h = _robust_sigma(f_h[window])
-    noise_v = _robust_sigma(f_v[window])
     # Quantised, nearly noise-free records: at least one resolution step.
-    noise_h = max(noise_h, float(np.min(np.abs(np.diff(np.unique(f_h[window]))), initial=0.0)))
-    noise_v = max(noise_v, float(np.min(np.abs(np.diff(np.unique(f_v[window]))), initial=0.0)))
+    noise_h = max(robust_sigma(f_h[window]), resolution_step(f_h[window]))
+    noise_v = max(robust_sigma(f_v[window]), resolution_step(f_v[window]))
     return PassForces(p.angle * arm, f_h, f_v, moving, m0, n0, noise_h, noise_v,
                       int(window[-1]))
 
@@ -370,3 +362,22 @@ def analyse_ladder(
         problems.append("no opposite pass at the same overlap and speed for pass(es) "
                         f"{', '.join(map(str, unpaired))}: no l_g or mu there")
     return LadderAnalysis(paired, problems), good
+
+
+def geometric_l_g(
+    s: float, touch_gap: float, passes: Sequence[RecordedPass], results: Sequence[PassResult],
+    overlap: float, speed: float,
+) -> float:
+    """Geometric contact length ``2 sqrt(S^2 - h^2)`` (m) at one (overlap, speed) level.
+
+    ``S = R1 + R2`` (m); ``h = S - (touch_gap - gap)`` with ``gap`` the mean over that level's
+    passes of each one's median recorded gap in its middle half. A check on the measured l_g
+    once a model fit has pinned the touch gap; NaN when no pass is at that level.
+    """
+    gaps = [float(np.median(p.gap[p.gap.size // 4: 3 * p.gap.size // 4]))
+            for p, r in zip(passes, results, strict=True)
+            if round(r.overlap, 9) == overlap and r.speed == speed]
+    if not gaps:
+        return math.nan
+    h = s - (touch_gap - float(np.mean(gaps)))
+    return 2.0 * math.sqrt(max(s * s - h * h, 0.0))

@@ -8,12 +8,11 @@ validated field by field so a bad value is reported with its file, field and all
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
 
-from instrument.errors import ConfigError
-from instrument.fields import Field
+from instrument.fields import Config, Field, Where, param
+from instrument.identity import Identity
 
 
 @dataclass(frozen=True)
@@ -37,17 +36,6 @@ class StageStatus:
         return self.moving or self.homing
 
 
-@dataclass(frozen=True)
-class StageIdentity:
-    """Who answered: what the data store records beside every run."""
-
-    model: str
-    serial_number: int
-    firmware: str
-    hardware_version: int
-    channels: int
-
-
 @runtime_checkable
 class Stage(Protocol):
     """A single-axis linear stage, in SI units. Positions are those of the homed axis.
@@ -56,8 +44,8 @@ class Stage(Protocol):
     ``instrument.errors`` error; a fault while moving commands a stop before it is raised.
     """
 
-    def identify(self) -> StageIdentity:
-        """Ask the controller who it is."""
+    def identify(self) -> Identity:
+        """Ask the controller who it is (what run.json records beside every run)."""
         ...
 
     def enable(self) -> None:
@@ -116,7 +104,7 @@ _ACTUATOR_TRAVEL_M = 25e-3
 
 
 @dataclass(frozen=True)
-class StageConfig:
+class StageConfig(Config):
     """Calibration, safety limits and timing of the compression-rig stage (KDC101 + Z825B).
 
     ``counts_per_mm`` defaults to the protocol document's 34554.96 (see ADR 0003 for the 34304
@@ -124,75 +112,39 @@ class StageConfig:
     Software limits are positions of the homed axis; nothing outside them is ever commanded.
     """
 
-    counts_per_mm: float = 34554.96
-    velocity_factor: float = 772981.3692
-    accel_factor: float = 263.8443072
-    min_position_m: float = 0.0
-    max_position_m: float = 12e-3
-    max_velocity_m_s: float = 2.3e-3
-    acceleration_m_s2: float = 4e-3
-    home_velocity_m_s: float = 1e-3
-    reply_timeout_s: float = 2.0
-    move_timeout_s: float = 60.0
-    poll_interval_s: float = 0.05
+    section: ClassVar[str] = "stage"
 
-    # TOML key -> (dataclass field, its allowed values)
-    _SPEC: ClassVar[dict[str, tuple[str, Field]]] = {
-        f.key: (name, f)
-        for name, f in (
-            ("counts_per_mm", Field("counts_per_mm", "", lo=1e3, hi=1e6, lo_open=True)),
-            ("velocity_factor", Field("velocity_factor", "", lo=1e3, hi=1e9, lo_open=True)),
-            ("accel_factor", Field("accel_factor", "", lo=1e-3, hi=1e6, lo_open=True)),
-            ("min_position_m", Field("min_position", "m", lo=0.0, hi=_ACTUATOR_TRAVEL_M)),
-            ("max_position_m", Field("max_position", "m", lo=0.0, hi=_ACTUATOR_TRAVEL_M)),
-            ("max_velocity_m_s", Field("max_velocity", "m/s", lo=0.0,
-                                       hi=_Z825B_MAX_VELOCITY_M_S, lo_open=True)),
-            ("acceleration_m_s2", Field("acceleration", "m/s^2", lo=0.0, hi=_ACCEL_CAP_M_S2,
-                                        lo_open=True)),
-            ("home_velocity_m_s", Field("home_velocity", "m/s", lo=0.0,
-                                        hi=_Z825B_MAX_VELOCITY_M_S, lo_open=True)),
-            ("reply_timeout_s", Field("reply_timeout", "s", lo=0.0, hi=60.0, lo_open=True)),
-            ("move_timeout_s", Field("move_timeout", "s", lo=0.0, hi=3600.0, lo_open=True)),
-            ("poll_interval_s", Field("poll_interval", "s", lo=0.0, hi=1.0, lo_open=True)),
-        )
-    }
+    counts_per_mm: float = param(Field("counts_per_mm", "", 34554.96, 1e3, 1e6, lo_open=True,
+                                       help="encoder counts per mm"))
+    velocity_factor: float = param(Field("velocity_factor", "", 772981.3692, 1e3, 1e9,
+                                         lo_open=True, help="APT velocity units per mm/s"))
+    accel_factor: float = param(Field("accel_factor", "", 263.8443072, 1e-3, 1e6, lo_open=True,
+                                      help="APT acceleration units per mm/s^2"))
+    min_position_m: float = param(Field("min_position", "m", 0.0, 0.0, _ACTUATOR_TRAVEL_M,
+                                        help="software travel limit", display="mm"))
+    max_position_m: float = param(Field("max_position", "m", 12e-3, 0.0, _ACTUATOR_TRAVEL_M,
+                                        help="software travel limit", display="mm"))
+    max_velocity_m_s: float = param(Field("max_velocity", "m/s", 2.3e-3, 0.0,
+                                          _Z825B_MAX_VELOCITY_M_S, lo_open=True,
+                                          help="cap on every commanded speed", display="mm/s"))
+    acceleration_m_s2: float = param(Field("acceleration", "m/s^2", 4e-3, 0.0, _ACCEL_CAP_M_S2,
+                                           lo_open=True, display="mm/s^2"))
+    home_velocity_m_s: float = param(Field("home_velocity", "m/s", 1e-3, 0.0,
+                                           _Z825B_MAX_VELOCITY_M_S, lo_open=True,
+                                           display="mm/s"))
+    reply_timeout_s: float = param(Field("reply_timeout", "s", 2.0, 0.0, 60.0, lo_open=True,
+                                         help="deadline of one request on the wire"))
+    move_timeout_s: float = param(Field("move_timeout", "s", 60.0, 0.0, 3600.0, lo_open=True))
+    poll_interval_s: float = param(Field("poll_interval", "s", 0.05, 0.0, 1.0, lo_open=True))
 
-    def __post_init__(self) -> None:
-        for name, spec in self._SPEC.values():
-            spec.check(getattr(self, name), "stage.")
+    def validate(self, where: Where) -> None:
         if not self.min_position_m < self.max_position_m:
-            raise ConfigError(
-                "min_position",
-                self.min_position_m,
-                f"must be < max_position ({self.max_position_m} m)",
-            )
-
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], source: str) -> StageConfig:
-        """Build from a ``[stage]`` table: numbers are SI, strings may carry units ("12 mm").
-
-        Keys: counts_per_mm, velocity_factor, accel_factor, min_position, max_position,
-        max_velocity, acceleration, home_velocity, reply_timeout, move_timeout, poll_interval.
-        Unknown keys and out-of-range values raise ConfigError naming ``source``.
-        """
-        values: dict[str, float] = {}
-        for key, raw in mapping.items():
-            if key not in cls._SPEC:
-                allowed = ", ".join(sorted(cls._SPEC))
-                raise ConfigError(f"stage.{key}", raw, f"unknown field; allowed: {allowed}", source)
-            name, spec = cls._SPEC[key]
-            values[name] = spec.parse(raw, "stage.", source)
-        lo_pos = values.get("min_position_m", cls.min_position_m)
-        hi_pos = values.get("max_position_m", cls.max_position_m)
-        if not lo_pos < hi_pos:
-            raise ConfigError("stage.min_position", lo_pos, f"must be < max_position ({hi_pos} m)",
-                              source)
-        return cls(**values)
+            raise where.error("min_position", self.min_position_m,
+                              f"must be < max_position ({self.max_position_m:g} m)")
 
     def to_mapping(self) -> dict[str, float]:
         """The inverse of ``from_mapping`` (SI numbers), for storing beside the data."""
-        by_field = {name: key for key, (name, *_rest) in self._SPEC.items()}
-        return {by_field[f.name]: getattr(self, f.name) for f in fields(self)}
+        return self.to_table()
 
     # Conversions used by drivers (mm only at the wire).
     def counts_from_m(self, position_m: float) -> int:

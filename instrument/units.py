@@ -54,6 +54,16 @@ def _parse_with_units(text: str, unit: str, field: str, source: str | None) -> f
         raise ConfigError(field, text, allowed, source) from None
 
 
+def convert(value: float, unit: str, to: str) -> float:
+    """``value`` in ``unit`` expressed in ``to`` (ConfigError if the dimensions differ)."""
+    if unit == to:
+        return value
+    try:
+        return float(_registry().Quantity(value, unit).to(to).magnitude)
+    except Exception:
+        raise ConfigError("unit", to, f"not convertible from {unit}") from None
+
+
 def positive(value: float, field: str, unit: str, source: str | None = None) -> float:
     """Return ``value`` if > 0, else raise ConfigError naming the field."""
     if not value > 0:

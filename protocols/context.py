@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Generic, TypeVar
 
 from instrument.clock import Clock
 from instrument.contact import FloatArray
@@ -11,35 +11,40 @@ from instrument.errors import InterlockTripped
 from protocols.control import RunControl
 from protocols.events import EventBus, InterlockTrip, Progress, RunState, Samples, StateChanged
 from protocols.interlocks import Interlock, check
-from protocols.rig import Rig
+from protocols.rig import RigT
+
+T = TypeVar("T")
 
 
-class StepContext:
-    """Services for one step: publish samples (interlocks checked on every sample), report
-    progress, honour pause at checkpoints and abort at every block."""
+class StepContext(Generic[RigT]):
+    """Services for one step on its rig: publish samples (interlocks checked on every sample),
+    report progress, honour pause at checkpoints and abort at every block, and hand over
+    earlier steps' results by type."""
 
     def __init__(
         self,
-        rig: Rig,
+        rig: RigT,
         bus: EventBus,
         control: RunControl,
         index: int,
-        earlier: Mapping[int, Mapping[str, Any]],
+        outcomes: Mapping[int, object] | None = None,
     ):
-        self.rig = rig
+        self.rig: RigT = rig
         self.clock: Clock = rig.clock
         self.bus = bus
         self.control = control
         self.index = index
-        self.earlier = earlier
+        self.outcomes = outcomes or {}
         self.interlocks: tuple[Interlock, ...] = ()
         self.samples_published = 0
 
-    def result(self, key: str) -> Any:
-        """The latest earlier step's result ``key`` (e.g. the first-touch position)."""
-        for index in sorted(self.earlier, reverse=True):
-            if key in self.earlier[index]:
-                return self.earlier[index][key]
+    def earlier(self, kind: type[T]) -> T | None:
+        """The latest earlier step's result of type ``kind`` (e.g. a contact search's), or
+        None if no earlier step produced one."""
+        for index in sorted((i for i in self.outcomes if i < self.index), reverse=True):
+            result = self.outcomes[index]
+            if isinstance(result, kind):
+                return result
         return None
 
     def emit(self, data: Mapping[str, FloatArray]) -> None:

@@ -45,6 +45,9 @@ class Event:
 
 @dataclass(frozen=True)
 class StepStarted(Event):
+    """Step ``index`` begins: its parameters (TOML keys, SI values; what run.json records)
+    and the columns, with units, of the samples it will publish."""
+
     index: int
     name: str
     kind: str
@@ -66,6 +69,9 @@ class Samples(Event):
 
 @dataclass(frozen=True)
 class Progress(Event):
+    """How far step ``index`` is (``fraction`` 0..1; ``elapsed`` and ``remaining`` in lab
+    seconds), a line for people, and live values by column-like name (SI)."""
+
     index: int
     fraction: float
     elapsed: float
@@ -76,6 +82,9 @@ class Progress(Event):
 
 @dataclass(frozen=True)
 class StepFinished(Event):
+    """Step ``index`` ended; ``results`` is its result as run.json records it (on failure or
+    abort: the reason)."""
+
     index: int
     name: str
     status: str  # "completed" | "aborted" | "failed"
@@ -84,6 +93,8 @@ class StepFinished(Event):
 
 @dataclass(frozen=True)
 class StateChanged(Event):
+    """The run moved from ``old`` to ``new`` (running, paused, ...), and why."""
+
     old: RunState
     new: RunState
     reason: str = ""
@@ -91,6 +102,9 @@ class StateChanged(Event):
 
 @dataclass(frozen=True)
 class InterlockTrip(Event):
+    """An interlock tripped: motion was stopped before this was published. ``value`` is the
+    sample that crossed ``limit`` (both in ``unit``)."""
+
     interlock: str
     value: float
     limit: float
@@ -100,12 +114,16 @@ class InterlockTrip(Event):
 
 @dataclass(frozen=True)
 class Fault(Event):
+    """A fault ended the run (``kind``: the error's type name); motion was stopped first."""
+
     kind: str
     message: str
 
 
 @dataclass(frozen=True)
 class Finished(Event):
+    """The run is over: completed, aborted or failed, and why. Always the last event."""
+
     state: RunState
     reason: str = ""
 

@@ -8,37 +8,66 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import ClassVar, TypeVar
+
+import numpy as np
 
 from instrument.clock import Clock
+from instrument.errors import InstrumentError
+from instrument.fields import Config, Field, param
 from instrument.loadcell import ForceSensor
 from instrument.rheometer import Rheometer
 from instrument.stage import Stage
+from protocols.interlocks import Interlock
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class CompressionLimits:
-    """Interlock limits of the plate-compression rig (SI)."""
+class CompressionLimits(Config):
+    """Interlock limits of the plate-compression rig (SI): the ``[limits]`` table."""
 
-    max_force: float = 2.0  # N, below the 2.5 N load cell's capacity
-    max_overlap: float = 2.5e-3  # m past first touch
-    fast_speed: float = 1e-3  # m/s, for moves away from the sphere
-    acceleration: float = 4e-3  # m/s^2
+    section: ClassVar[str] = "limits"
+
+    max_force: float = param(Field("max_force", "N", 2.0, 0.0, 100.0, lo_open=True,
+                                   help="below the 2.5 N load cell's capacity"))
+    max_overlap: float = param(Field("max_overlap", "m", 2.5e-3, 0.0, 20e-3, lo_open=True,
+                                     help="past first touch", display="mm"))
+    fast_speed: float = param(Field("fast_speed", "m/s", 1e-3, 0.0, 2.6e-3, lo_open=True,
+                                    help="for moves away from the sphere", display="mm/s"))
+    acceleration: float = param(Field("acceleration", "m/s^2", 4e-3, 0.0, 10e-3, lo_open=True,
+                                      display="mm/s^2"))
+
+    def guards(self) -> tuple[tuple[str, float, str], ...]:
+        """(what, limit, SI unit) of each interlock, for people."""
+        return ("force", self.max_force, "N"), ("overlap", self.max_overlap, "m")
 
 
 @dataclass(frozen=True)
-class ShearLimits:
-    """Interlock limits of the shear rig (SI)."""
+class ShearLimits(Config):
+    """Interlock limits of the shear rig (SI): the ``[limits]`` table."""
 
-    max_torque: float = 5e-3  # N m
-    max_normal_force: float = 2.0  # N
-    max_overlap: float = 1.2e-3  # m below the touch gap
+    section: ClassVar[str] = "limits"
+
+    max_torque: float = param(Field("max_torque", "N*m", 5e-3, 0.0, 1.0, lo_open=True))
+    max_normal_force: float = param(Field("max_normal_force", "N", 2.0, 0.0, 100.0,
+                                          lo_open=True))
+    max_overlap: float = param(Field("max_overlap", "m", 1.2e-3, 0.0, 10e-3, lo_open=True,
+                                     help="below the touch gap", display="mm"))
+
+    def guards(self) -> tuple[tuple[str, float, str], ...]:
+        """(what, limit, SI unit) of each interlock, for people."""
+        return (("torque", self.max_torque, "N*m"),
+                ("normal force", self.max_normal_force, "N"), ("overlap", self.max_overlap, "m"))
 
 
 @dataclass
 class CompressionRig:
-    """Stage + force sensor of the plate-compression rig."""
+    """Stage + force sensor of the plate-compression rig.
+
+    What differs between the rigs is a method here, not a branch in its callers: the
+    interlocks a step arms, the idle readings the GUI shows, the manual commands.
+    """
 
     stage: Stage
     force: ForceSensor
@@ -47,8 +76,67 @@ class CompressionRig:
     identities: dict[str, object] = field(default_factory=dict)
     simulated: bool = False
     close_hooks: list[Callable[[], None]] = field(default_factory=list)
+    monitoring: bool = field(default=False, init=False)
 
     kind = "compression"
+
+    def interlocks(self, overlap: bool = False) -> tuple[Interlock, ...]:
+        """What a step checks on every sample: the force, and the overlap past first touch
+        once the step knows where first touch is (``overlap``)."""
+        force = Interlock("force", "force_N", self.limits.max_force, "N")
+        if not overlap:
+            return (force,)
+        return force, Interlock("overlap", "delta_m", self.limits.max_overlap, "m",
+                                absolute=False)
+
+    def readings(self, monitor_rate: float = 100.0) -> dict[str, float]:
+        """Live values while idle: position, motion, homed, and the latest force (mean of
+        the last 0.1 s; the force input is started at ``monitor_rate`` Hz if it is not)."""
+        status = self.stage.status()
+        values = {"position_m": self.stage.position(), "moving": float(status.busy),
+                  "homed": float(status.homed)}
+        try:
+            if not self.monitoring:
+                self.force.start(monitor_rate)
+                self.monitoring = True
+            block = self.force.read_block(None)
+        except InstrumentError:
+            self.monitoring = False  # an overflow or a stopped task: restart next time
+            raise
+        if len(block):
+            tail = max(1, round(0.1 * self.force.rate))
+            values["force_N"] = float(np.mean(block.force[-tail:]))
+        return values
+
+    def end_monitoring(self) -> None:
+        """Before a run: drop the idle readout's unread samples so the run starts now."""
+        if not self.monitoring:
+            return
+        self.monitoring = False
+        try:
+            self.force.read_block(None)
+        except InstrumentError:
+            self.force.start(self.force.rate or 100.0)
+
+    # manual commands: each returns at once; the motion goes on under the readout
+    def home(self) -> None:
+        self.stage.home(wait=False)
+
+    def move_plate(self, speed: float, target: float | None = None,
+                   by: float | None = None) -> None:
+        """Move the plate to ``target`` or ``by`` a distance (m) at ``speed`` (m/s)."""
+        self.stage.set_velocity(speed, self.limits.acceleration)
+        if target is not None:
+            self.stage.move_to(target, wait=False)
+        elif by is not None:
+            self.stage.move_by(by, wait=False)
+
+    def tare(self, duration: float, monitor_rate: float = 100.0) -> float:
+        """Zero the force on ``duration`` s of samples; returns the removed offset (N)."""
+        if not self.monitoring:
+            self.force.start(monitor_rate)
+            self.monitoring = True
+        return self.force.tare(duration)
 
     def stop_all(self) -> None:
         """Stop every motion at once; never raises (it runs on the way out of faults)."""
@@ -64,7 +152,7 @@ class CompressionRig:
 
 @dataclass
 class ShearRig:
-    """The rheometer of the inter-particle shear rig."""
+    """The rheometer of the inter-particle shear rig (see :class:`CompressionRig`)."""
 
     rheometer: Rheometer
     clock: Clock
@@ -75,7 +163,38 @@ class ShearRig:
 
     kind = "shear"
 
+    def interlocks(self) -> tuple[Interlock, ...]:
+        """What a step checks on every sample: torque and normal force."""
+        return (Interlock("torque", "torque_Nm", self.limits.max_torque, "N*m"),
+                Interlock("normal force", "normal_force_N", self.limits.max_normal_force, "N"))
+
+    def readings(self, monitor_rate: float = 100.0) -> dict[str, float]:
+        """Live values while idle: gap, arm angle and arc, torque, normal force, motion."""
+        rheo = self.rheometer
+        status = rheo.status()
+        return {"gap_m": rheo.gap(), "angle_rad": rheo.angle(), "theta_m": rheo.theta(),
+                "torque_Nm": rheo.torque(), "normal_force_N": rheo.normal_force(),
+                "moving": float(status.busy), "gap_referenced": float(status.gap_referenced)}
+
+    def end_monitoring(self) -> None:
+        """Nothing streams while idle on this rig."""
+
+    # manual commands: each returns at once
+    def zero_gap(self) -> None:
+        self.rheometer.zero_gap()
+
+    def set_gap(self, gap: float) -> None:
+        self.rheometer.set_gap(gap, wait=False)
+
+    def rotate(self, speed: float) -> None:
+        """Turn at ``speed`` (m/s at the arm; + clockwise)."""
+        self.rheometer.rotate(speed)
+
+    def hold(self) -> None:
+        self.rheometer.hold()
+
     def stop_all(self) -> None:
+        """Stop every motion at once; never raises (it runs on the way out of faults)."""
         try:
             self.rheometer.stop()
         except Exception:
@@ -96,3 +215,5 @@ def _run_all(closers: tuple[Callable[[], None], ...]) -> None:
 
 
 Rig = CompressionRig | ShearRig
+RigT = TypeVar("RigT", CompressionRig, ShearRig)
+"""A step or context generic over the rig it runs on."""

@@ -41,14 +41,20 @@ class Runner:
         control: RunControl | None = None,
         completed: Mapping[int, Mapping[str, Any]] | None = None,
     ):
-        if protocol.rig != rig.kind:
+        if protocol.rig != rig.kind or not all(isinstance(rig, s.definition.rig)
+                                               for s in protocol.steps):
             raise GelrigError(f"protocol {protocol.name!r} runs on a {protocol.rig} rig, "
                               f"not on this {rig.kind} rig")
         self.rig = rig
         self.protocol = protocol
         self.bus = bus or EventBus()
         self.control = control or RunControl()
+        #: what each finished step recorded (run.json's tables), by step index
         self.results: dict[int, Mapping[str, Any]] = dict(completed or {})
+        #: the same, typed: what later steps read through ``StepContext.earlier``
+        self.outcomes: dict[int, object] = {
+            i: protocol.steps[i].definition.Result.from_dict(table)
+            for i, table in self.results.items() if i < len(protocol.steps)}
         self.state = RunState.IDLE
         self.reason = ""
 
@@ -63,12 +69,12 @@ class Runner:
         for index, step in enumerate(self.protocol.steps):
             if index in self.results:
                 continue
-            ctx = StepContext(self.rig, self.bus, self.control, index, self.results)
+            ctx = StepContext[Any](self.rig, self.bus, self.control, index, self.outcomes)
             try:
                 ctx.checkpoint()
                 self.bus.publish(StepStarted(clock.now(), index, step.name, step.kind,
-                                             step.params, step.definition.columns))
-                results = step.definition.run(ctx, step.params)
+                                             step.params.to_table(), step.definition.columns))
+                outcome = step.definition.run(ctx, step.params)
             except Aborted as exc:
                 return self._end(index, step.name, RunState.ABORTED, "aborted",
                                  str(exc) or "abort requested")
@@ -85,6 +91,8 @@ class Runner:
                 self._end(index, step.name, RunState.FAILED, "failed",
                           f"{type(exc).__name__}: {exc}")
                 raise
+            results = outcome.as_dict()
+            self.outcomes[index] = outcome
             self.results[index] = results
             self.bus.publish(StepFinished(clock.now(), index, step.name, "completed", results))
         self.reason = "all steps completed"

@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from instrument.errors import ConfigError
-from instrument.fields import read_toml
+from instrument.fields import Where, read_toml
 from protocols.steps import KINDS, StepDefinition
-from protocols.steps.base import Params
+from protocols.steps.base import StepParams
 
 RIGS = ("compression", "shear")
 
@@ -32,9 +32,9 @@ RIGS = ("compression", "shear")
 class Step:
     """One step of a protocol: its kind, a name, validated SI parameters."""
 
-    definition: StepDefinition
+    definition: StepDefinition[Any, Any, Any]
     name: str
-    params: Params
+    params: StepParams
 
     @property
     def kind(self) -> str:
@@ -63,33 +63,33 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
         raise ConfigError(key, "?", "unknown table; allowed: [protocol], [[step]]", source)
     name = head.get("name")
     if not isinstance(name, str) or not name.strip():
-        raise ConfigError("protocol.name", name, "a non-empty string", source)
+        raise ConfigError("[protocol] name", name, "a non-empty string", source)
     rig = head.get("rig")
     if rig not in RIGS:
-        raise ConfigError("protocol.rig", rig, f"allowed: {', '.join(RIGS)}", source)
+        raise ConfigError("[protocol] rig", rig, f"allowed: {', '.join(RIGS)}", source)
     extra = set(head) - {"name", "rig", "description"}
     if extra:
         key = sorted(extra)[0]
-        raise ConfigError(f"protocol.{key}", head[key],
+        raise ConfigError(f"[protocol] {key}", head[key],
                           "unknown field; allowed: name, rig, description", source)
     raw_steps = table.get("step")
     if not isinstance(raw_steps, list) or not raw_steps:
-        raise ConfigError("step", "missing", "at least one [[step]] table", source)
+        raise ConfigError("[[step]]", "missing", "at least one [[step]] table", source)
     steps = []
     for i, raw in enumerate(raw_steps):
-        prefix = f"step[{i}]."
+        where = Where(f"step[{i}]", source)
         kind = raw.get("kind")
         definition = KINDS.get(kind) if isinstance(kind, str) else None
         if definition is None:
-            allowed = ", ".join(k for k, d in KINDS.items() if d.rig == rig)
-            raise ConfigError(f"{prefix}kind", kind, f"allowed for a {rig} rig: {allowed}", source)
-        if definition.rig != rig:
-            raise ConfigError(f"{prefix}kind", kind,
-                              f"runs on the {definition.rig} rig, not the {rig} rig", source)
+            allowed = ", ".join(k for k, d in KINDS.items() if d.rig_kind == rig)
+            raise where.error("kind", kind, f"allowed for a {rig} rig: {allowed}")
+        if definition.rig_kind != rig:
+            raise where.error("kind", kind,
+                              f"runs on the {definition.rig_kind} rig, not the {rig} rig")
         step_name = raw.get("name", definition.description or kind)
         if not isinstance(step_name, str) or not step_name.strip():
-            raise ConfigError(f"{prefix}name", step_name, "a non-empty string", source)
-        steps.append(Step(definition, step_name, definition.parse(raw, prefix, source)))
+            raise where.error("name", step_name, "a non-empty string")
+        steps.append(Step(definition, step_name, definition.parse(raw, where)))
     return ProtocolSpec(name, rig, tuple(steps), table, source)
 
 

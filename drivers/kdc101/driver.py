@@ -1,10 +1,11 @@
 """The KDC101 + Z825B stage over APT: a ``Stage`` on any pyserial port or URL.
 
-``KDC101("COM3")``, ``KDC101("/dev/ttyUSB0")``, ``KDC101("socket://host:port")`` or
-``KDC101("kdc101sim://name", clock=clock)`` all run the same code. Every wait goes through the
-injected clock; bad bytes are skipped (the framer resynchronises) and a lost reply is asked
-for once more; timeouts, device error replies and a vanished port raise typed errors, and a
-fault while the stage may be moving first commands MOT_MOVE_STOP.
+``KDC101("COM3").open()``, ``KDC101("/dev/ttyUSB0")``, ``KDC101("socket://host:port")`` or
+``KDC101("kdc101sim://name", clock=clock)`` all run the same code; the constructor does no
+I/O, ``open()`` (or ``with``) connects (ADR 0050). Every wait goes through the injected clock;
+bad bytes are skipped (the framer resynchronises) and a lost reply is asked for once more;
+timeouts, device error replies and a vanished port raise typed errors, and any fault while the
+stage may be moving (Ctrl-C included) first commands MOT_MOVE_STOP.
 """
 
 from __future__ import annotations
@@ -32,10 +33,13 @@ from instrument.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
+    GelrigError,
     InstrumentError,
     InstrumentTimeout,
 )
-from instrument.stage import StageConfig, StageIdentity, StageStatus
+from instrument.identity import Identity
+from instrument.safety import stop_on_fault
+from instrument.stage import StageConfig, StageStatus
 
 BAUD = 115200
 COMPLETIONS = {MsgId.MOT_MOVE_COMPLETED, MsgId.MOT_MOVE_STOPPED, MsgId.MOT_MOVE_HOMED}
@@ -47,8 +51,11 @@ ARRIVAL_TOLERANCE_COUNTS = 2
 class KDC101:
     """Thorlabs KDC101 K-Cube DC servo controller with a Z825B actuator (implements Stage).
 
+    Constructing does no I/O; :meth:`open` connects, identifies, enables and configures.
+
     Args:
-        port: a port name or pyserial URL, or an already open pyserial port.
+        port: a port name or pyserial URL, or a pyserial port (opened by ``open()`` if it
+            is not open yet, e.g. made with ``do_not_open=True``).
         config: calibration, software limits and timing (``StageConfig``).
         clock: what every wait goes through (the simulator's clock in virtual time).
         status_updates: ask for status messages every 100 ms (and keep them alive).
@@ -74,16 +81,26 @@ class KDC101:
         self._last_update = -1e300
         self.last_status_update: pl.DcStatus | None = None
         self._port_timeout: float | None = None
-        if isinstance(port, str):
-            self.address = port
-            try:
-                self._port = serial.serial_for_url(port, baudrate=BAUD, bytesize=8, parity="N",
-                                                   stopbits=1, rtscts=False, timeout=0)
-            except (SerialException, OSError, ValueError) as exc:
-                raise Disconnected(f"KDC101: cannot open {port!r}: {exc}") from exc
-        else:
-            self._port = port
-            self.address = str(port.port)
+        self._given: str | SerialBase = port
+        self._link: SerialBase | None = None
+        self.address = port if isinstance(port, str) else str(port.port)
+        self.identity: Identity | None = None
+
+    # ---- lifecycle --------------------------------------------------------------------
+    @property
+    def is_open(self) -> bool:
+        return self._link is not None
+
+    def open(self) -> KDC101:
+        """Open the port, identify, enable the channel and configure it; returns self.
+
+        A no-op if already open. On failure the port is closed again and the error raised.
+        """
+        if self._link is not None:
+            return self
+        self._link = self._connect()
+        self._framer.clear()
+        self._port_timeout = None
         try:
             self._open_sequence()
             self.identity = self.identify()
@@ -92,6 +109,26 @@ class KDC101:
         except BaseException:
             self._close_port()
             raise
+        return self
+
+    def _connect(self) -> SerialBase:
+        port = self._given
+        try:
+            if isinstance(port, str):
+                return serial.serial_for_url(port, baudrate=BAUD, bytesize=8, parity="N",
+                                             stopbits=1, rtscts=False, timeout=0)
+            if not port.is_open:
+                port.open()
+            return port
+        except (SerialException, OSError, ValueError) as exc:
+            raise Disconnected(f"KDC101: cannot open {self.address!r}: {exc}") from exc
+
+    @property
+    def _port(self) -> SerialBase:
+        """The open port; Disconnected before ``open()`` or after ``close()``."""
+        if self._link is None:
+            raise Disconnected(f"KDC101 at {self.address}: not open (call open())")
+        return self._link
 
     # ---- the open sequence ------------------------------------------------------------
     def _open_sequence(self) -> None:
@@ -231,30 +268,41 @@ class KDC101:
     # ---- safety -----------------------------------------------------------------------
     @contextmanager
     def _guard(self) -> Iterator[None]:
-        """On any failure while the stage may be moving, command a stop, then re-raise."""
-        try:
-            yield
-        except BaseException:
-            if self._maybe_moving:
-                self._emergency_stop()
-            raise
+        """On any failure (Ctrl-C included) while the stage may be moving, stop, re-raise.
+
+        An exchange cut short (Ctrl-C) may leave its reply unread, which the next request of
+        the same kind would take for its own: the input is dropped first.
+        """
+        with stop_on_fault(self._emergency_stop, needed=lambda: self._maybe_moving,
+                           what=f"KDC101 at {self.address}"):
+            try:
+                yield
+            except GelrigError:
+                raise
+            except BaseException:
+                self._discard_input()
+                raise
+
+    def _discard_input(self) -> None:
+        self._framer.clear()
+        with suppress(InstrumentError, SerialException, OSError, ValueError):
+            self._port.reset_input_buffer()
 
     def _emergency_stop(self) -> None:
-        # If the link is gone there is nothing more to do from here.
-        with suppress(InstrumentError):
-            self._send(command(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE))
+        self._send(command(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE))
 
     # ---- Stage: identity and set-up ---------------------------------------------------
-    def identify(self) -> StageIdentity:
+    def identify(self) -> Identity:
+        """Ask the controller (HW_REQ_INFO); InstrumentError if it is not a KDC101."""
         info = pl.HwInfo.unpack(self._data(self._query(command(MsgId.HW_REQ_INFO),
                                                        MsgId.HW_GET_INFO)))
         if not info.model.startswith("KDC101"):
             raise InstrumentError(f"{self.address}: expected a KDC101, found {info.model!r} "
                                   f"(serial {info.serial_number})")
         self.hw_info = info
-        return StageIdentity(info.model, info.serial_number,
-                             ".".join(str(n) for n in info.firmware), info.hw_version,
-                             info.n_channels)
+        return stage_identity(info.model, info.serial_number,
+                              ".".join(str(n) for n in info.firmware), info.hw_version,
+                              info.n_channels)
 
     def enable(self) -> None:
         with self._guard():
@@ -389,6 +437,9 @@ class KDC101:
         return self.status().busy
 
     def close(self) -> None:
+        """Stop the status stream and release the port (does not move the stage); idempotent."""
+        if self._link is None:
+            return
         try:
             if self._status_updates:
                 self._send(command(MsgId.HW_STOP_UPDATEMSGS))
@@ -400,13 +451,28 @@ class KDC101:
     def _close_port(self) -> None:
         # pyserial's socket:// close skips socket.close() when shutdown() fails on a peer
         # that already hung up; close it ourselves so the descriptor is not leaked.
-        sock = getattr(self._port, "_socket", None)
-        self._port.close()
+        port, self._link = self._link, None
+        if port is None:
+            return
+        sock = getattr(port, "_socket", None)
+        port.close()
         if sock is not None:
             sock.close()
 
     def __enter__(self) -> KDC101:
-        return self
+        return self.open()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def stage_identity(model: str, serial_number: int, firmware: str, hardware_version: int,
+                   channels: int) -> Identity:
+    """The Identity of a KDC101 from its HW_GET_INFO fields (shared by both backends).
+
+    ``extra`` keeps run.json's former stage keys: serial_number, hardware_version, channels.
+    """
+    return Identity("Thorlabs", model, str(serial_number), firmware, str(hardware_version),
+                    extra={"serial_number": str(serial_number),
+                           "hardware_version": str(hardware_version),
+                           "channels": str(channels)})

@@ -3,8 +3,9 @@
 Optional: needs the ``pylablib`` extra (pylablib-lightweight, plus numba, which pylablib's
 Thorlabs package imports). pylablib does the APT talking; this adapter converts units, checks
 software limits before anything is sent, waits on the injected clock, maps pylablib's errors to
-ours, and sends a stop on any fault while moving. Velocity moves use the direction table of
-``payloads`` (pylablib's own ``jog`` inverts it, see ADR 0004).
+ours, and sends a stop on any fault while moving (Ctrl-C included). Like ``KDC101``, the
+constructor does no I/O and ``open()`` connects (ADR 0050). Velocity moves use the direction
+table of ``payloads`` (pylablib's own ``jog`` inverts it, see ADR 0004).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from drivers.kdc101 import payloads as pl
 from drivers.kdc101.apt import CHANNEL, MsgId
+from drivers.kdc101.driver import stage_identity
 from instrument.clock import Clock, RealClock
 from instrument.errors import (
     DeviceErrorReply,
@@ -23,7 +25,9 @@ from instrument.errors import (
     InstrumentError,
     InstrumentTimeout,
 )
-from instrument.stage import StageConfig, StageIdentity, StageStatus
+from instrument.identity import Identity
+from instrument.safety import stop_on_fault
+from instrument.stage import StageConfig, StageStatus
 
 
 def load_kinesis() -> Any:
@@ -49,7 +53,28 @@ class PylablibKDC101:
         self.config = config or StageConfig()
         self.clock: Clock = clock or RealClock()
         self.address = port
+        self._timeout_s = timeout_s
         self._maybe_moving = False
+        self._motor: Any = None
+        self._errors: tuple[type[Exception], ...] = ()  # pylablib's, known once loaded
+        self.identity: Identity | None = None
+
+    # ---- lifecycle --------------------------------------------------------------------
+    @property
+    def is_open(self) -> bool:
+        return self._motor is not None
+
+    @property
+    def motor(self) -> Any:
+        """pylablib's KinesisMotor; Disconnected before ``open()`` or after ``close()``."""
+        if self._motor is None:
+            raise Disconnected(f"KDC101 (pylablib) at {self.address}: not open (call open())")
+        return self._motor
+
+    def open(self) -> PylablibKDC101:
+        """Connect through pylablib, identify and set the configured velocity; returns self."""
+        if self._motor is not None:
+            return self
         kinesis = load_kinesis()
         self._errors = (kinesis.ThorlabsError,)
         self._timeout_cls = kinesis.ThorlabsTimeoutError
@@ -57,29 +82,34 @@ class PylablibKDC101:
         c = self.config
         scale = (c.counts_per_mm * 1e3, c.velocity_factor * 1e3, c.accel_factor * 1e3)
         with self._mapped():
-            self.motor = kinesis.KinesisMotor(pylablib_conn(port), scale=scale)
-            self.motor.instr.set_timeout(timeout_s or c.reply_timeout_s)
+            motor = kinesis.KinesisMotor(pylablib_conn(self.address), scale=scale)
+        self._motor = motor
         try:
+            with self._mapped():
+                motor.instr.set_timeout(self._timeout_s or c.reply_timeout_s)
             self.identity = self.identify()
             self.set_velocity(c.max_velocity_m_s, c.acceleration_m_s2)
         except BaseException:
             self.close()
             raise
+        return self
+
+    def __enter__(self) -> PylablibKDC101:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     # ---- errors and safety ------------------------------------------------------------
     @contextmanager
     def _mapped(self) -> Iterator[None]:
-        """pylablib's exceptions -> ours; a stop first if the stage may be moving."""
-        try:
-            yield
-        except self._errors as exc:
-            if self._maybe_moving:
-                self._emergency_stop()
-            raise self._translate(exc) from exc
-        except BaseException:
-            if self._maybe_moving:
-                self._emergency_stop()
-            raise
+        """pylablib's exceptions -> ours; a stop first (any fault) if the stage may be moving."""
+        with stop_on_fault(self._emergency_stop, needed=lambda: self._maybe_moving,
+                           what=f"KDC101 (pylablib) at {self.address}"):
+            try:
+                yield
+            except self._errors as exc:
+                raise self._translate(exc) from exc
 
     def _translate(self, exc: Exception) -> InstrumentError:
         text = f"KDC101 (pylablib) at {self.address}: {exc}"
@@ -92,17 +122,16 @@ class PylablibKDC101:
         return InstrumentError(text)
 
     def _emergency_stop(self) -> None:
-        with suppress(Exception):
-            self.motor.send_comm(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE)
+        self.motor.send_comm(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE)
 
     # ---- Stage ------------------------------------------------------------------------
-    def identify(self) -> StageIdentity:
+    def identify(self) -> Identity:
         with self._mapped():
             info = self.motor.get_device_info()
         if not str(info.model_no).startswith("KDC101"):
             raise InstrumentError(f"{self.address}: expected a KDC101, found {info.model_no!r}")
-        return StageIdentity(info.model_no, int(info.serial_no), info.fw_ver, int(info.hw_ver),
-                             int(info.nchannels))
+        return stage_identity(str(info.model_no), int(info.serial_no), str(info.fw_ver),
+                              int(info.hw_ver), int(info.nchannels))
 
     def enable(self) -> None:
         with self._mapped():
@@ -178,5 +207,8 @@ class PylablibKDC101:
             self._maybe_moving = False
 
     def close(self) -> None:
-        with suppress(Exception):
-            self.motor.close()
+        """Release pylablib's connection (does not move the stage); idempotent."""
+        motor, self._motor = self._motor, None
+        if motor is not None:
+            with suppress(Exception):
+                motor.close()

@@ -2,98 +2,111 @@
 
 Every request goes through the command table (drivers/mcr501/commands.py, UNCONFIRMED on
 hardware). SI units at the interface; wire units (mm, deg, rpm, mN m) inside. Waits run on the
-injected clock, so in virtual time a gap move or a pass costs no wall time. Safe by default: a
-failure of any method while the arm may be turning sends stop before the error propagates.
+injected clock, so in virtual time a gap move or a pass costs no wall time. The constructor
+does no I/O; ``open()`` (or ``with``) connects and identifies (ADR 0050). Safe by default: any
+failure of a method while the arm may be turning, Ctrl-C included, sends stop before the error
+propagates (instrument.safety).
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
+import logging
 import math
-from collections.abc import Callable
-from typing import Any, Concatenate, ParamSpec, TypeVar
+from collections.abc import Iterator
+from typing import Any
 
 from drivers.mcr501.codec import Values, decode_record, decode_reply
 from drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
 from drivers.mcr501.transport import LineTransport, VisaTransport
 from instrument.clock import Clock
 from instrument.errors import (
+    Disconnected,
     FramingError,
     GelrigError,
     InstrumentError,
     InstrumentTimeout,
     LimitError,
 )
+from instrument.identity import Identity
 from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
+from instrument.safety import guarded, stop_on_fault
 from instrument.sliding import rpm_from_speed
 
-P = ParamSpec("P")
-R = TypeVar("R")
+log = logging.getLogger(__name__)
 
 _MODES = {"IDLE": "idle", "ROT": "rotating", "HOLD": "holding"}
 #: Shortest stream interval the driver asks for (s).
 MIN_STREAM_INTERVAL = 1e-3
 
 
-def _stops_on_fault(
-    method: Callable[Concatenate[MCR501, P], R],
-) -> Callable[Concatenate[MCR501, P], R]:
-    """Wrap a public method: on any gelrig error while the arm may turn, stop it first."""
-
-    @functools.wraps(method)
-    def wrapper(self: MCR501, *args: P.args, **kwargs: P.kwargs) -> R:
-        try:
-            return method(self, *args, **kwargs)
-        except GelrigError as exc:
-            self._after_fault(exc)
-            raise
-
-    return wrapper
-
-
 class MCR501:
     """Anton Paar MCR 501 with the rotating-arm shear tool, over any line transport.
 
-    Use :meth:`open` for a VISA resource string; pass a transport directly for anything else.
+    ``transport`` is a VISA resource string (a :class:`VisaTransport` is made by ``open()``,
+    ASRL resources at 38400 baud 8N1 XON/XOFF by default, through ``backend`` or a shared
+    ``resource_manager``) or a ready :class:`LineTransport` (the simulator's DirectLink).
+    Constructing does no I/O.
     """
 
     def __init__(
-        self, transport: LineTransport, clock: Clock, config: RheometerConfig | None = None
-    ):
-        self._transport = transport
-        self._clock = clock
-        self._config = config if config is not None else RheometerConfig()
-        self._maybe_rotating = False
-        self._stream_t0: float | None = None
-        self.touch_gap: float | None = self._config.touch_gap
-
-    @classmethod
-    def open(
-        cls,
-        resource: str,
+        self,
+        transport: LineTransport | str,
         clock: Clock,
         config: RheometerConfig | None = None,
+        *,
         backend: str = "@py",
         resource_manager: Any = None,
         baud_rate: int = BAUD_RATE,
-    ) -> MCR501:
-        """Connect through pyvisa; ASRL resources get 38400 baud 8N1 XON/XOFF by default."""
-        config = config if config is not None else RheometerConfig()
-        transport = VisaTransport(
-            resource,
-            timeout=config.timeout,
-            backend=backend,
-            resource_manager=resource_manager,
-            baud_rate=baud_rate,
-        )
-        return cls(transport, clock, config)
+    ):
+        self._given = transport
+        self._link: LineTransport | None = None
+        self._clock = clock
+        self._config = config if config is not None else RheometerConfig()
+        self._backend, self._resource_manager, self._baud_rate = (
+            backend, resource_manager, baud_rate)
+        self._maybe_rotating = False
+        self._stream_t0: float | None = None
+        self.touch_gap: float | None = self._config.touch_gap
+        self.identity: Identity | None = None
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    @property
+    def is_open(self) -> bool:
+        return self._link is not None
+
+    def open(self) -> MCR501:
+        """Connect (a VISA resource) and identify; returns self. A no-op if already open."""
+        if self._link is not None:
+            return self
+        given = self._given
+        if isinstance(given, str):
+            self._link = VisaTransport(given, timeout=self._config.timeout,
+                                       backend=self._backend,
+                                       resource_manager=self._resource_manager,
+                                       baud_rate=self._baud_rate)
+        else:
+            self._link = given
+        try:
+            self.identity = self.identify()
+        except BaseException:
+            self._release()
+            raise
+        return self
 
     def __enter__(self) -> MCR501:
-        return self
+        return self.open()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    @property
+    def _transport(self) -> LineTransport:
+        """The open transport; Disconnected before ``open()`` or after ``close()``."""
+        if self._link is None:
+            raise Disconnected("MCR 501: not open (call open())")
+        return self._link
 
     @property
     def config(self) -> RheometerConfig:
@@ -111,33 +124,52 @@ class MCR501:
         self._transport.write_line(command.request.encode(**values))
         return decode_reply(command, self._transport.read_line())
 
-    def _after_fault(self, exc: BaseException) -> None:
-        if isinstance(exc, InstrumentTimeout | FramingError):
-            with contextlib.suppress(InstrumentError):
-                self._transport.discard_input()
-        if self._maybe_rotating:
-            self._emergency_stop()
+    @contextlib.contextmanager
+    def _guard(self) -> Iterator[None]:
+        """Any failure while the arm may turn sends stop first (instrument.safety).
+
+        A timeout, a framing error or an interrupted exchange (Ctrl-C) may leave a reply
+        unread: the input is drained so that the next reply lines up with its request.
+        """
+        with stop_on_fault(self._emergency_stop, needed=lambda: self._maybe_rotating,
+                           what="MCR 501"):
+            try:
+                yield
+            except BaseException as exc:
+                if isinstance(exc, InstrumentTimeout | FramingError) or not isinstance(
+                    exc, GelrigError
+                ):
+                    self._drain()
+                raise
+
+    def _drain(self) -> None:
+        with contextlib.suppress(InstrumentError):
+            self._transport.discard_input()
 
     def _emergency_stop(self) -> None:
-        """Send stop, once more if the first attempt fails; never raise."""
-        for _ in range(2):
+        """Send stop, once more if the first attempt fails; raise the last failure."""
+        for attempt in (1, 2):
             try:
                 self._transact("stop")
             except InstrumentError:
-                with contextlib.suppress(InstrumentError):
-                    self._transport.discard_input()
+                self._drain()
+                if attempt == 2:
+                    raise
                 continue
             self._maybe_rotating = False
             return
 
     # -- identity and state ----------------------------------------------------------------
 
-    @_stops_on_fault
-    def identify(self) -> str:
+    @guarded
+    def identify(self) -> Identity:
+        """Ask the instrument; ``extra["identity"]`` keeps run.json's former one-line form."""
         v = self._transact("identify")
-        return f"{v['model']} {v['serial']} firmware {v['firmware']}"
+        model, serial, firmware = str(v["model"]), str(v["serial"]), str(v["firmware"])
+        return Identity("Anton Paar", model, serial, firmware,
+                        extra={"identity": f"{model} {serial} firmware {firmware}"})
 
-    @_stops_on_fault
+    @guarded
     def status(self) -> RheometerStatus:
         return self._status()
 
@@ -160,12 +192,12 @@ class MCR501:
 
     # -- gap -------------------------------------------------------------------------------
 
-    @_stops_on_fault
+    @guarded
     def zero_gap(self) -> None:
         self._transact("zero_gap")
         self._wait_for_lift()
 
-    @_stops_on_fault
+    @guarded
     def set_gap(self, gap: float, wait: bool = True) -> None:
         deepest = self._deepest_gap()
         if not (math.isfinite(gap) and deepest <= gap <= self._config.gap_max):
@@ -197,13 +229,13 @@ class MCR501:
                 )
             self._clock.sleep(self._config.poll_interval)
 
-    @_stops_on_fault
+    @guarded
     def gap(self) -> float:
         return float(self._transact("read_gap")["gap_mm"]) * 1e-3
 
     # -- rotation --------------------------------------------------------------------------
 
-    @_stops_on_fault
+    @guarded
     def rotate(self, speed: float) -> None:
         """Turn at ``speed`` m/s at the arm; positive is clockwise (increasing angle)."""
         if not self._config.speed_allowed(speed):
@@ -218,7 +250,7 @@ class MCR501:
         self._maybe_rotating = True
         self._transact("rotate", direction="CW" if speed > 0 else "CCW", rpm=rpm)
 
-    @_stops_on_fault
+    @guarded
     def stop(self) -> None:
         self._stop()
 
@@ -226,31 +258,31 @@ class MCR501:
         self._transact("stop")
         self._maybe_rotating = False
 
-    @_stops_on_fault
+    @guarded
     def hold(self) -> None:
         self._transact("hold")
         self._maybe_rotating = False
 
     # -- readings --------------------------------------------------------------------------
 
-    @_stops_on_fault
+    @guarded
     def angle(self) -> float:
         return math.radians(float(self._transact("read_angle")["angle_deg"]))
 
     def theta(self) -> float:
         return self.angle() * self._config.arm
 
-    @_stops_on_fault
+    @guarded
     def torque(self) -> float:
         return float(self._transact("read_torque")["torque_mnm"]) * 1e-3
 
-    @_stops_on_fault
+    @guarded
     def normal_force(self) -> float:
         return float(self._transact("read_normal_force")["force_n"])
 
     # -- measurement stream ----------------------------------------------------------------
 
-    @_stops_on_fault
+    @guarded
     def start_stream(self, interval: float) -> None:
         if not (math.isfinite(interval) and interval >= MIN_STREAM_INTERVAL):
             raise LimitError(
@@ -260,7 +292,7 @@ class MCR501:
         self._transact("start_stream", interval_s=interval)
         self._stream_t0 = t0
 
-    @_stops_on_fault
+    @guarded
     def read_stream(self) -> list[StreamPoint]:
         """Every point recorded since the last read; times on the caller's clock."""
         t0 = 0.0 if self._stream_t0 is None else self._stream_t0
@@ -284,15 +316,24 @@ class MCR501:
             if int(header["remaining"]) == 0:
                 return points
 
-    @_stops_on_fault
+    @guarded
     def stop_stream(self) -> None:
         self._transact("stop_stream")
         self._stream_t0 = None
 
     def close(self) -> None:
-        """Stop the arm if it may be turning, then release the transport."""
+        """Stop the arm if it may be turning, then release the transport; idempotent."""
+        if self._link is None:
+            return
         try:
             if self._maybe_rotating:
                 self._emergency_stop()
+        except InstrumentError as exc:
+            log.error("MCR 501: stop on close failed: %s", exc)
         finally:
-            self._transport.close()
+            self._release()
+
+    def _release(self) -> None:
+        link, self._link = self._link, None
+        if link is not None:
+            link.close()

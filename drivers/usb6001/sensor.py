@@ -4,14 +4,15 @@ The same class drives a local device (NI-DAQmx installed) or a device behind an 
 Device Server, real or simulated: only the ``grpc_options`` differ. Hardware-timed continuous
 sampling; blocks are read with the stream reader into preallocated arrays, timestamped on the
 injected clock from the sample index (sample k at start + k / rate), converted to newtons
-through the calibration chain and the tare.
+through the calibration chain and the tare. The constructor does no I/O; ``open()`` (or
+``with``) creates the task (ADR 0050).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import AbstractContextManager, contextmanager, suppress
 
 import grpc
 import nidaqmx
@@ -23,17 +24,33 @@ from numpy.typing import ArrayLike
 from drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
 from drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
 from instrument.clock import Clock
-from instrument.errors import ConfigError, InstrumentError
+from instrument.errors import ConfigError, GelrigError, InstrumentError
+from instrument.identity import Identity
 from instrument.loadcell import (
     AcquisitionTimeoutError,
     ForceBlock,
     ForceOverRangeError,
     LoadCellChain,
 )
+from instrument.safety import guarded, stop_on_fault
 
 #: Fallback device limit (S/s aggregate) if the device does not report its maximum rate.
 DEFAULT_MAX_RATE = 20_000.0
 _TERMINALS = {"RSE": TerminalConfiguration.RSE, "DIFF": TerminalConfiguration.DIFF}
+
+
+def grpc_target(address: str) -> str | None:
+    """The gRPC ``host:port`` of ``address`` ("grpc://host:port"), or None for "local".
+
+    Checks the form only (no I/O): ConfigError for anything else.
+    """
+    text = address.strip()
+    if text.lower() in ("", "local"):
+        return None
+    target = text[len("grpc://"):] if text.lower().startswith("grpc://") else text
+    if ":" not in target:
+        raise ConfigError("address", address, "allowed: local, or grpc://HOST:PORT")
+    return target
 
 
 def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, grpc.Channel | None]:
@@ -41,12 +58,9 @@ def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, g
 
     Returns the options and the channel the caller then owns (None for local).
     """
-    text = address.strip()
-    if text.lower() in ("", "local"):
+    target = grpc_target(address)
+    if target is None:
         return None, None
-    target = text[len("grpc://"):] if text.lower().startswith("grpc://") else text
-    if ":" not in target:
-        raise ConfigError("address", address, "allowed: local, or grpc://HOST:PORT")
     channel = grpc.insecure_channel(target)
     return nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name=""), channel
 
@@ -54,33 +68,70 @@ def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, g
 class Usb6001ForceSensor:
     """A :class:`~instrument.loadcell.ForceSensor` on one USB-6001 analog input.
 
-    Constructing it connects: it creates the DAQmx task and the voltage channel (min -10 V,
-    max +10 V, passed explicitly), so a missing driver or device fails here with
+    ``address`` is "local" (NI-DAQmx on this computer), "grpc://host:port" (an NI gRPC Device
+    Server, real or simulated; the channel is made by ``open()`` and closed by ``close()``),
+    or ready ``GrpcSessionOptions`` whose channel the caller keeps. Constructing checks the
+    address's form only; ``open()`` creates the DAQmx task and the voltage channel (min -10 V,
+    max +10 V, passed explicitly), so a missing driver or device fails there with
     DaqDriverNotFoundError / DaqDeviceNotFoundError.
     """
 
     def __init__(
         self,
+        address: str | nidaqmx.GrpcSessionOptions | None,
         config: Usb6001Config,
         chain: LoadCellChain,
         clock: Clock,
-        grpc_options: nidaqmx.GrpcSessionOptions | None = None,
-        *,
-        owned_channel: grpc.Channel | None = None,
     ):
         self.config = config
         self.chain = chain
         self.clock = clock
-        self._grpc = grpc_options
-        self._owned_channel = owned_channel
+        if isinstance(address, str):
+            self._target = grpc_target(address)
+            self._grpc: nidaqmx.GrpcSessionOptions | None = None
+        else:
+            self._target, self._grpc = None, address
+        self._owned_channel: grpc.Channel | None = None
         self._zero = chain.offset
         self._rate = 0.0
         self._running = False
         self._t_start = 0.0
         self._index = 0
         self._task: nidaqmx.Task | None = None
+        self._product = ""
+        self._serial = 0
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    @property
+    def is_open(self) -> bool:
+        return self._task is not None
+
+    def open(self) -> Usb6001ForceSensor:
+        """Create the task and its channel, and read the device's identity; returns self.
+
+        A no-op if already open; on failure nothing is left open.
+        """
+        if self._task is not None:
+            return self
+        if self._target is not None:
+            self._owned_channel = grpc.insecure_channel(self._target)
+            self._grpc = nidaqmx.GrpcSessionOptions(grpc_channel=self._owned_channel,
+                                                    session_name="")
+        try:
+            self._task = self._create_task()
+        except BaseException:
+            self._close_channel()
+            raise
+        self._reader = AnalogSingleChannelReader(self._task.in_stream)
+        # One channel, arrays sized here: skip the per-read channel-count query (an RPC).
+        self._reader.verify_array_shape = False
+        return self
+
+    def _create_task(self) -> nidaqmx.Task:
+        config = self.config
         with self._errors():
-            task = nidaqmx.Task(grpc_options=grpc_options)
+            task = nidaqmx.Task(grpc_options=self._grpc)
             try:
                 task.ai_channels.add_ai_voltage_chan(
                     config.physical_channel,
@@ -95,23 +146,37 @@ class Usb6001ForceSensor:
                 with suppress(*NIDAQMX_ERRORS):
                     task.close()
                 raise
-        self._task = task
-        self._reader = AnalogSingleChannelReader(task.in_stream)
-        # One channel, arrays sized here: skip the per-read channel-count query (an RPC).
-        self._reader.verify_array_shape = False
+        return task
 
-    @classmethod
-    def open(
-        cls, address: str, config: Usb6001Config, chain: LoadCellChain, clock: Clock
-    ) -> Usb6001ForceSensor:
-        """Connect through ``address`` ("local" or "grpc://host:port"); see grpc_options_for."""
-        options, channel = grpc_options_for(address)
-        try:
-            return cls(config, chain, clock, options, owned_channel=channel)
-        except BaseException:
-            if channel is not None:
-                channel.close()
-            raise
+    def _close_channel(self) -> None:
+        if self._owned_channel is not None:
+            self._owned_channel.close()
+            self._owned_channel = None
+            self._grpc = None
+
+    def __enter__(self) -> Usb6001ForceSensor:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _guard(self) -> AbstractContextManager[None]:
+        """Stop the acquisition on a fault that leaves the sample count unknown.
+
+        There is no motion to stop. A read cut short by Ctrl-C (or an unexpected error) may
+        have consumed samples that were never counted, so later timestamps would be wrong:
+        the task is stopped and the next ``start()`` counts afresh. The driver's typed errors
+        are spared: they account for every sample (a timeout or over-range block is attached)
+        and the caller may read on or restart, as the ForceSensor contract allows.
+        """
+        return stop_on_fault(self._abort, needed=lambda: self._task is not None,
+                             spare=(GelrigError,), what=f"USB-6001 {self.config.device}")
+
+    def _abort(self) -> None:
+        self._running = False
+        if self._task is not None:
+            with self._errors():
+                self._task.stop()
 
     @contextmanager
     def _errors(self) -> Iterator[None]:
@@ -123,7 +188,8 @@ class Usb6001ForceSensor:
     @property
     def task(self) -> nidaqmx.Task:
         if self._task is None:
-            raise InstrumentError(f"USB-6001 {self.config.device}: the sensor is closed")
+            raise InstrumentError(
+                f"USB-6001 {self.config.device}: the sensor is closed (or not yet open)")
         return self._task
 
     @property
@@ -135,15 +201,17 @@ class Usb6001ForceSensor:
         """Input voltage (V) taken as zero force: the chain's offset until a tare."""
         return self._zero
 
-    def identity(self) -> dict[str, str]:
-        return {
+    def identify(self) -> Identity:
+        """The device read at ``open()``; ``extra`` keeps run.json's former force keys."""
+        if self._task is None:
+            raise InstrumentError(f"USB-6001 {self.config.device}: not open (call open())")
+        return Identity("NI", self._product, f"{self._serial:X}", extra={
             "instrument": f"NI {self._product}",
             "device": self.config.device,
-            "serial": f"{self._serial:X}",
             "channel": self.config.physical_channel,
             "terminal": self.config.terminal,
             "transport": "grpc" if self._grpc is not None else "local NI-DAQmx",
-        }
+        })
 
     def max_rate(self) -> float:
         """The device's sample-rate limit for this task (S/s)."""
@@ -153,6 +221,7 @@ class Usb6001ForceSensor:
             except nidaqmx.errors.DaqError:
                 return DEFAULT_MAX_RATE
 
+    @guarded
     def start(self, rate_hz: float) -> None:
         """Start continuous hardware-timed sampling at ``rate_hz``."""
         limit = self.max_rate()
@@ -171,6 +240,7 @@ class Usb6001ForceSensor:
         self._index = 0
         self._running = True
 
+    @guarded
     def read_block(self, n: int | None = None, timeout: float | None = None) -> ForceBlock:
         """The next ``n`` samples (None: all available now), waiting up to ``timeout`` (s).
 
@@ -244,7 +314,7 @@ class Usb6001ForceSensor:
                 self._task.stop()
 
     def close(self) -> None:
-        """Stop, release the task, and close a gRPC channel this sensor opened."""
+        """Stop, release the task, and close a gRPC channel this sensor opened; idempotent."""
         try:
             self.stop()
         finally:
@@ -254,12 +324,4 @@ class Usb6001ForceSensor:
                     with self._errors():
                         task.close()
             finally:
-                if self._owned_channel is not None:
-                    self._owned_channel.close()
-                    self._owned_channel = None
-
-    def __enter__(self) -> Usb6001ForceSensor:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+                self._close_channel()

@@ -9,16 +9,13 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from instrument.errors import ConfigError, GelrigError
 
 if TYPE_CHECKING:
-    from gui.services import RigSpecLike, Services
-    from instrument.clock import Clock
-    from protocols.rig import Rig
+    from gui.services import Services
     from protocols.spec import ProtocolSpec
 
 PACES = {"1": 1.0, "10": 10.0, "100": 100.0, "inf": math.inf, "max": math.inf}
@@ -53,18 +50,10 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
                   runs: Path | None = None) -> Services:
     """The GUI's services, wired to gelrig's loader, factory and session metadata."""
     from gelrig.factory import build_rig
-    from gelrig.rigfile import RIG_DIR, RigSpec, default_rig, load_rig
     from gelrig.session import default_run_dir, metadata
     from gui.services import Services
+    from protocols.rigfile import RIG_DIR, default_rig, load_rig
     from protocols.spec import paper_protocol
-
-    def build(spec: RigSpecLike, clock: Clock) -> Rig:
-        assert isinstance(spec, RigSpec)
-        return build_rig(spec, clock)
-
-    def meta(protocol: ProtocolSpec, spec: RigSpecLike, clock_spec: str) -> Mapping[str, Any]:
-        assert isinstance(spec, RigSpec)
-        return metadata(protocol, spec, clock_spec)
 
     def analysis(path: Path) -> str:
         """``gelrig analyze`` on a run: writes RUN_DIR/analysis, returns its summary."""
@@ -80,8 +69,8 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
     return Services(
         rig_file=rig_file or default_rig("compression"),
         load_rig=load_rig,
-        build_rig=build,
-        metadata=meta,
+        build_rig=build_rig,
+        metadata=metadata,
         default_run_dir=run_dir,
         pace=pace,
         rig_dir=RIG_DIR,

@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING, Any
 from instrument.errors import ConfigError
 
 if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when a command runs
-    from gelrig.rigfile import RigSpec
     from instrument.store import RunDirectory
     from protocols.events import RunState
+    from protocols.rigfile import RigSpec
     from protocols.spec import ProtocolSpec
 
 #: Exit code by the final RunState's value.
@@ -59,7 +59,7 @@ def resolve_protocol(name: str) -> ProtocolSpec:
 
 
 def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
-    from gelrig.rigfile import default_rig, load_rig
+    from protocols.rigfile import default_rig, load_rig
 
     rig = load_rig(path if path else default_rig(protocol.rig))
     if rig.kind != protocol.rig:
@@ -120,9 +120,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
-    from gelrig.rigfile import parse_rig
     from gelrig.session import execute
     from instrument.store import RunDirectory
+    from protocols.rigfile import parse_rig
     from protocols.spec import parse_protocol
 
     run = RunDirectory(args.run_dir)

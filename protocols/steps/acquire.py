@@ -15,6 +15,7 @@ import numpy as np
 
 from instrument.contact import FloatArray
 from instrument.loadcell import ForceBlock, ForceOverRangeError
+from instrument.noise import MIN_SAMPLES, robust_sigma
 from protocols.context import StepContext
 from protocols.rig import CompressionRig
 
@@ -31,10 +32,9 @@ COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_
 class ForceRecorder:
     """Reads force blocks, stamps them with the plate position, publishes, keeps a copy."""
 
-    def __init__(self, ctx: StepContext, rate: float, first_touch: float = math.nan,
-                 block_time: float = 0.1, keep: bool = True):
+    def __init__(self, ctx: StepContext[CompressionRig], rate: float,
+                 first_touch: float = math.nan, block_time: float = 0.1, keep: bool = True):
         rig = ctx.rig
-        assert isinstance(rig, CompressionRig)
         self.ctx = ctx
         self.rig = rig
         self.rate = rate
@@ -70,10 +70,10 @@ class ForceRecorder:
         """Samples that can be read before a watched level could be crossed (halved for
         safety); one sample once the force is within 5 sigma of a level."""
         recent = self._recent
-        if recent.size < 2:
+        if recent.size < MIN_SAMPLES:
             return 1 if watch else n_max
         last = float(recent[-1])
-        sigma = 1.4826 * float(np.median(np.abs(np.diff(recent)))) / math.sqrt(2.0)
+        sigma = robust_sigma(recent)
         k = max(1, recent.size // 4)
         slope = (float(recent[-k:].mean()) - float(recent[:k].mean())) / (recent.size - k)
         room = min((w - last for w in watch), default=math.inf)

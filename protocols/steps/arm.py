@@ -21,9 +21,8 @@ COLUMNS = {
 class ArmRecorder:
     """Streams points while the arm turns or rests, publishes them with pass labels."""
 
-    def __init__(self, ctx: StepContext, interval: float, read_period: float = 1.0):
+    def __init__(self, ctx: StepContext[ShearRig], interval: float, read_period: float = 1.0):
         rig = ctx.rig
-        assert isinstance(rig, ShearRig)
         self.ctx = ctx
         self.rheo: Rheometer = rig.rheometer
         self.arm = self.rheo.config.arm

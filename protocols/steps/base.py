@@ -1,15 +1,63 @@
-"""What every step kind provides: its parameters, its columns, its plan and how it runs."""
+"""What every step kind provides: typed parameters, a typed result, its columns, plan and run.
+
+A step kind is a :class:`StepDefinition` generic over the rig it runs on, its parameters and
+its result::
+
+    @dataclass(frozen=True)
+    class CreepParams(StepParams):
+        force: float = param(Field("force", "N", 0.1, 0.0, 2.0, lo_open=True))
+        hold: float = param(Field("hold", "s", 600.0, 0.0, 86400.0))
+
+    @dataclass(frozen=True)
+    class CreepResult(StepResult):
+        final_position_m: float
+
+    class Creep(StepDefinition[CompressionRig, CreepParams, CreepResult]):
+        kind = "creep"
+        rig = CompressionRig
+        Params, Result = CreepParams, CreepResult
+        def plan(self, params, limits): ...
+        def run(self, ctx, params): ...
+
+Parameters are read from a protocol file's ``[[step]]`` table by the one configuration reader
+(:mod:`instrument.fields`), so they carry units, defaults, ranges and help once. A result is
+stored in run.json as a table (:meth:`StepResult.as_dict`) and read back typed on resume; a
+later step asks for an earlier one by type (:meth:`StepContext.earlier`).
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Generic, Self, TypeVar
 
-from instrument.fields import Field, parse_table
+from instrument.fields import Config, Field, Where
 from protocols.context import StepContext
+from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
 
-Params = dict[str, Any]
+
+@dataclass(frozen=True)
+class StepParams(Config):
+    """Base of step parameters: a validated config read from one ``[[step]]`` table."""
+
+    section: ClassVar[str] = "step"
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Base of step results: stored in run.json as a table, read back typed on resume."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result as run.json stores it (nested dataclasses become tables)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, table: Mapping[str, Any]) -> Self:
+        """A stored result (run.json) as this type; missing optional fields take defaults."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in table.items() if k in names})
 
 
 @dataclass
@@ -31,21 +79,49 @@ class StepPlan:
     checks: list[PlanCheck] = field(default_factory=list)
 
 
-class StepDefinition:
-    """Base of the step kinds. Subclasses set the class attributes and implement plan/run."""
+RigT = TypeVar("RigT", CompressionRig, ShearRig)
+ParamsT = TypeVar("ParamsT", bound=StepParams)
+ResultT = TypeVar("ResultT", bound=StepResult)
+Limits = CompressionLimits | ShearLimits
+
+
+class StepDefinition(Generic[RigT, ParamsT, ResultT]):
+    """Base of the step kinds: set the class attributes, implement ``plan`` and ``run``.
+
+    ``rig`` is the rig class the step runs on (the runner refuses any other); ``Params``
+    and ``Result`` are the dataclasses of its parameters and its result; ``columns`` names
+    the recorded columns with their units.
+    """
 
     kind: ClassVar[str] = ""
-    rig: ClassVar[str] = ""
+    rig: ClassVar[type[CompressionRig] | type[ShearRig]]
     description: ClassVar[str] = ""
-    fields: ClassVar[tuple[Field, ...]] = ()
     columns: ClassVar[dict[str, str]] = {}
+    Params: type[ParamsT]
+    Result: type[ResultT]
 
-    def parse(self, table: Mapping[str, Any], prefix: str, source: str | None) -> Params:
-        """Validated SI parameters from a protocol-file table (``kind``/``name`` excluded)."""
-        return dict(parse_table(table, self.fields, prefix, source, ignore=("kind", "name")))
+    @property
+    def rig_kind(self) -> str:
+        """``"compression"`` or ``"shear"``: what protocol files name."""
+        return self.rig.kind
 
-    def plan(self, params: Params, limits: Any) -> StepPlan:
+    @property
+    def fields(self) -> tuple[Field, ...]:
+        """The numeric fields of the parameters (forms build one entry each)."""
+        return tuple(s for s in self.Params.specs().values() if isinstance(s, Field))
+
+    def parse(self, table: Mapping[str, Any], where: Where) -> ParamsT:
+        """Validated parameters from a protocol-file table (``kind``/``name`` excluded)."""
+        return self.Params.from_table(table, where.source, where.section,
+                                      ignore=("kind", "name"))
+
+    def plan(self, params: ParamsT, limits: Limits) -> StepPlan:
         raise NotImplementedError
 
-    def run(self, ctx: StepContext, params: Params) -> dict[str, Any]:
+    def run(self, ctx: StepContext[RigT], params: ParamsT) -> ResultT:
         raise NotImplementedError
+
+
+def given(value: float | None) -> float | None:
+    """``value`` if it is a finite number, else None (an optional parameter left out)."""
+    return value if value is not None and math.isfinite(value) else None

@@ -6,94 +6,132 @@ from __future__ import annotations
 
 import math
 import statistics
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import ClassVar
 
 from instrument.analysis import estimate_first_touch
 from instrument.errors import InstrumentError
-from instrument.fields import Field
+from instrument.fields import Field, param
 from protocols.context import StepContext
-from protocols.interlocks import Interlock
 from protocols.rig import CompressionLimits, CompressionRig
 from protocols.steps.acquire import COLUMNS, ForceRecorder
-from protocols.steps.base import Params, PlanCheck, StepDefinition, StepPlan
+from protocols.steps.base import (
+    Limits,
+    PlanCheck,
+    StepDefinition,
+    StepParams,
+    StepPlan,
+    StepResult,
+)
 
 
-class CompressionContactSearch(StepDefinition):
+@dataclass(frozen=True)
+class SearchParams(StepParams):
+    """Parameters of a compression contact search (paper: 0.5 mm probes at 0.3 mm/s)."""
+
+    start: float = param(Field("start", "m", 0.0, 0.0, 25e-3, display="mm",
+                               help="stage position to start from, clear of the sphere"))
+    probe: float = param(Field("probe", "m", 0.5e-3, 0.0, 5e-3, lo_open=True, display="mm",
+                               help="travel of one probe move"))
+    speed: float = param(Field("speed", "m/s", 0.3e-3, 0.0, 2.3e-3, lo_open=True,
+                               display="mm/s", help="probe speed"))
+    threshold: float = param(Field("threshold", "N", 5e-3, 0.0, 1.0, lo_open=True,
+                                   help="force that means contact"))
+    retract: float = param(Field("retract", "m", 0.5e-3, 0.0, 10e-3, lo_open=True, display="mm",
+                                 help="back-off before each confirming approach, from the "
+                                      "estimated touch"))
+    confirm: float = param(Field("confirm", "", 2, 0, 10, integer=True,
+                                 help="confirming approaches"))
+    max_travel: float = param(Field("max_travel", "m", 15e-3, 0.0, 25e-3, lo_open=True,
+                                    display="mm",
+                                    help="give up after this much probing in one approach"))
+    rate: float = param(Field("rate", "Hz", 100.0, 100.0, 20e3, help="force sample rate"))
+    tare_time: float = param(Field("tare_time", "s", 1.0, 0.0, 60.0,
+                                   help="force averaged for the tare (0: no tare)"))
+
+    @property
+    def approaches(self) -> int:
+        return 1 + int(self.confirm)
+
+
+@dataclass(frozen=True)
+class SearchResult(StepResult):
+    """Where the plate first touches the sphere: the mean of the approaches' estimates."""
+
+    first_touch_m: float
+    first_touch_spread_m: float
+    estimates_m: list[float]
+    threshold_crossings_m: list[float]
+    tare_offset_N: float  # noqa: N815 (run.json key: units in the name)
+
+
+class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, SearchResult]):
+    """Probe towards the sphere until the force crosses a threshold, estimate first touch from
+    each approach curve, retract and approach again to confirm."""
+
     kind: ClassVar[str] = "compression_contact_search"
-    rig: ClassVar[str] = "compression"
+    rig = CompressionRig
+    Params = SearchParams
+    Result = SearchResult
     description: ClassVar[str] = "contact search"
     columns: ClassVar[dict[str, str]] = COLUMNS
-    fields: ClassVar[tuple[Field, ...]] = (
-        Field("start", "m", 0.0, 0.0, 25e-3,
-              help="stage position to start from, clear of the sphere"),
-        Field("probe", "m", 0.5e-3, 0.0, 5e-3, lo_open=True, help="travel of one probe move"),
-        Field("speed", "m/s", 0.3e-3, 0.0, 2.3e-3, lo_open=True, help="probe speed"),
-        Field("threshold", "N", 5e-3, 0.0, 1.0, lo_open=True, help="force that means contact"),
-        Field("retract", "m", 0.5e-3, 0.0, 10e-3, lo_open=True,
-              help="back-off before each confirming approach, from the estimated touch"),
-        Field("confirm", "", 2, 0, 10, integer=True, help="confirming approaches"),
-        Field("max_travel", "m", 15e-3, 0.0, 25e-3, lo_open=True,
-              help="give up after this much probing in one approach"),
-        Field("rate", "Hz", 100.0, 100.0, 20e3, help="force sample rate"),
-        Field("tare_time", "s", 1.0, 0.0, 60.0, help="force averaged for the tare (0: no tare)"),
-    )
 
-    def plan(self, params: Params, limits: Any) -> StepPlan:
-        approaches = 1 + int(params["confirm"])
-        per_probe = params["probe"] / params["speed"]
+    def plan(self, params: SearchParams, limits: Limits) -> StepPlan:
+        p = params
+        approaches = p.approaches
+        per_probe = p.probe / p.speed
         lines = [
-            f"move to {params['start'] * 1e3:.3f} mm, tare for {params['tare_time']:g} s",
-            f"probe in {params['probe'] * 1e3:g} mm moves at {params['speed'] * 1e3:g} mm/s until "
-            f"the force exceeds {params['threshold'] * 1e3:g} mN; {approaches} approaches "
-            f"(retract {params['retract'] * 1e3:g} mm between)",
+            f"move to {p.start * 1e3:.3f} mm, tare for {p.tare_time:g} s",
+            f"probe in {p.probe * 1e3:g} mm moves at {p.speed * 1e3:g} mm/s until "
+            f"the force exceeds {p.threshold * 1e3:g} mN; {approaches} approaches "
+            f"(retract {p.retract * 1e3:g} mm between)",
             "first touch from a Hertz fit of each approach curve; reports mean and spread",
         ]
         checks = []
         if isinstance(limits, CompressionLimits):
-            ok = params["threshold"] < limits.max_force
-            checks.append(PlanCheck("force", ok, f"threshold {params['threshold'] * 1e3:g} mN "
+            ok = p.threshold < limits.max_force
+            checks.append(PlanCheck("force", ok, f"threshold {p.threshold * 1e3:g} mN "
                                     f"{'<' if ok else '>='} force limit "
                                     f"{limits.max_force * 1e3:g} mN"))
         # Unknown until it runs: bound by the probing travel plus the confirming approaches.
-        travel = params["max_travel"] + approaches * 2 * params["retract"]
-        duration = (params["max_travel"] / params["speed"]
-                    + approaches * (2 * params["retract"] / params["speed"] + per_probe)
-                    + params["tare_time"])
+        travel = p.max_travel + approaches * 2 * p.retract
+        duration = (p.max_travel / p.speed
+                    + approaches * (2 * p.retract / p.speed + per_probe) + p.tare_time)
         return StepPlan(duration, travel, lines, checks)
 
-    def run(self, ctx: StepContext, params: Params) -> dict[str, Any]:
+    def run(self, ctx: StepContext[CompressionRig], params: SearchParams) -> SearchResult:
+        p = params
         rig = ctx.rig
-        assert isinstance(rig, CompressionRig)
         stage, limits = rig.stage, rig.limits
-        ctx.interlocks = (Interlock("force", "force_N", limits.max_force, "N"),)
+        ctx.interlocks = rig.interlocks()
         if not stage.status().homed:  # before acquiring: homing is a blocking wait
             stage.home(wait=True)
-        rec = ForceRecorder(ctx, params["rate"])
+        rec = ForceRecorder(ctx, p.rate)
         rec.start()
         stage.set_velocity(limits.fast_speed, limits.acceleration)
-        stage.move_to(params["start"], wait=False)
+        stage.move_to(p.start, wait=False)
         rec.until_stopped()
-        offset = rec.tare(params["tare_time"]) if params["tare_time"] > 0 else 0.0
-        stage.set_velocity(params["speed"], limits.acceleration)
-        threshold = params["threshold"]
+        offset = rec.tare(p.tare_time) if p.tare_time > 0 else 0.0
+        stage.set_velocity(p.speed, limits.acceleration)
+        threshold = p.threshold
         estimates: list[float] = []
         crossings: list[float] = []
-        approaches = 1 + int(params["confirm"])
+        approaches = p.approaches
         for attempt in range(approaches):
             ctx.checkpoint()
             rec.clear()
             travelled = 0.0
             crossing: int | None = None
             while crossing is None:
-                if travelled >= params["max_travel"] - 1e-12:
+                if travelled >= p.max_travel - 1e-12:
                     raise InstrumentError(
-                        f"no contact within {params['max_travel'] * 1e3:g} mm of probing "
+                        f"no contact within {p.max_travel * 1e3:g} mm of probing "
                         f"(force never exceeded {threshold * 1e3:g} mN); check the start "
                         "position and the threshold")
-                stage.move_by(params["probe"], wait=False)
+                stage.move_by(p.probe, wait=False)
                 crossing = rec.until_stopped(watch=(threshold,), stop_above=threshold)
-                travelled += params["probe"]
-                ctx.progress((attempt + min(travelled / params["max_travel"], 0.99)) / approaches,
+                travelled += p.probe
+                ctx.progress((attempt + min(travelled / p.max_travel, 0.99)) / approaches,
                              0.0, 0.0, f"approach {attempt + 1}/{approaches}",
                              position_m=stage.position())
             cols = rec.columns()
@@ -105,13 +143,11 @@ class CompressionContactSearch(StepDefinition):
             estimates.append(touch)
             crossings.append(z_cross)
             stage.set_velocity(limits.fast_speed, limits.acceleration)
-            stage.move_to(max(touch - params["retract"], params["start"]), wait=False)
+            stage.move_to(max(touch - p.retract, p.start), wait=False)
             rec.until_stopped()
-            stage.set_velocity(params["speed"], limits.acceleration)
+            stage.set_velocity(p.speed, limits.acceleration)
         first_touch = statistics.fmean(estimates)
         spread = max(estimates) - min(estimates)
         ctx.progress(1.0, 0.0, 0.0, f"first touch {first_touch * 1e3:.4f} mm "
                      f"(spread {spread * 1e6:.1f} um)", first_touch_m=first_touch)
-        return {"first_touch_m": first_touch, "first_touch_spread_m": spread,
-                "estimates_m": estimates, "threshold_crossings_m": crossings,
-                "tare_offset_N": offset}
+        return SearchResult(first_touch, spread, estimates, crossings, offset)

@@ -5,103 +5,126 @@ speed cannot be one travel), so the plan states the resulting duration."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any, ClassVar
+from dataclasses import dataclass, field
+from typing import ClassVar
 
 from instrument import paper
-from instrument.errors import ConfigError, GelrigError
-from instrument.fields import Field
+from instrument.errors import GelrigError
+from instrument.fields import Field, FieldList, param
 from instrument.sliding import rpm_from_speed
 from protocols.context import StepContext
-from protocols.interlocks import Interlock
 from protocols.rig import ShearLimits, ShearRig
 from protocols.steps.arm import COLUMNS, ArmRecorder
-from protocols.steps.base import Params, PlanCheck, StepDefinition, StepPlan
+from protocols.steps.base import (
+    Limits,
+    PlanCheck,
+    StepDefinition,
+    StepParams,
+    StepPlan,
+    StepResult,
+    given,
+)
+from protocols.steps.shear_search import ShearSearchResult
 
-_SPEED = Field("speeds", "m/s", None, 0.0, 0.01, lo_open=True)
+_SPEED = Field("speeds", "m/s", None, 0.0, 0.01, lo_open=True, display="mm/s")
 
 
-class SpeedLadder(StepDefinition):
+@dataclass(frozen=True)
+class LadderParams(StepParams):
+    """Parameters of the sliding-speed ladder (paper: 5 overlaps 0.1 mm apart from 0.38 mm,
+    4 speeds)."""
+
+    overlaps: float = param(Field("overlaps", "", 5, 1, 20, integer=True,
+                                  help="number of overlap levels"))
+    first_overlap: float = param(Field("first_overlap", "m", 0.38e-3, 0.0, 5e-3, lo_open=True,
+                                       display="mm",
+                                       help="shallowest overlap below the touch gap"))
+    overlap_step: float = param(Field("overlap_step", "m", 0.1e-3, 0.0, 1e-3, display="mm",
+                                      help="between overlap levels"))
+    speeds: tuple[float, ...] = param(FieldList("speeds", _SPEED, tuple(paper.SPEEDS),
+                                             help="sliding speeds, in this order"))
+    travel: float = param(Field("travel", "m", 20e-3, 0.0, 0.15, lo_open=True, display="mm",
+                                help="arc travel of one leg"))
+    wait: float = param(Field("wait", "s", 60.0, 0.0, 86400.0, help="rest after each leg"))
+    interval: float = param(Field("interval", "s", 0.1, 0.001, 10.0,
+                                  help="measurement-stream interval"))
+    read_period: float = param(Field("read_period", "s", 2.0, 0.01, 60.0,
+                                     help="how often the stream is read"))
+    touch_gap: float | None = param(Field("touch_gap", "m", None, 0.0, 0.05, optional=True,
+                                          display="mm", help="gap at first touch; default: "
+                                                             "from the contact search"))
+    centre_angle: float | None = param(Field(
+        "centre_angle", "rad", None, -2 * math.pi, 2 * math.pi, optional=True,
+        help="arm angle over the lower sphere; default: from the contact search"))
+
+    @property
+    def levels(self) -> list[float]:
+        """The overlaps (m below the touch gap), shallowest first."""
+        return [self.first_overlap + i * self.overlap_step for i in range(int(self.overlaps))]
+
+
+@dataclass(frozen=True)
+class LadderResult(StepResult):
+    """Where the ladder ran, and one row per pass (overlap, speed, direction)."""
+
+    touch_gap_m: float
+    centre_angle_rad: float
+    passes: list[dict[str, float]] = field(default_factory=list)
+
+
+class SpeedLadder(StepDefinition[ShearRig, LadderParams, LadderResult]):
+    """For each overlap, for each speed: sweep clockwise, wait, sweep back, wait."""
+
     kind: ClassVar[str] = "speed_ladder"
-    rig: ClassVar[str] = "shear"
+    rig = ShearRig
+    Params = LadderParams
+    Result = LadderResult
     description: ClassVar[str] = "sliding-speed ladder"
     columns: ClassVar[dict[str, str]] = COLUMNS
-    fields: ClassVar[tuple[Field, ...]] = (
-        Field("overlaps", "", 5, 1, 20, integer=True, help="number of overlap levels"),
-        Field("first_overlap", "m", 0.38e-3, 0.0, 5e-3, lo_open=True,
-              help="shallowest overlap below the touch gap"),
-        Field("overlap_step", "m", 0.1e-3, 0.0, 1e-3, help="between overlap levels"),
-        Field("travel", "m", 20e-3, 0.0, 0.15, lo_open=True, help="arc travel of one leg"),
-        Field("wait", "s", 60.0, 0.0, 86400.0, help="rest after each leg"),
-        Field("interval", "s", 0.1, 0.001, 10.0, help="measurement-stream interval"),
-        Field("read_period", "s", 2.0, 0.01, 60.0, help="how often the stream is read"),
-        Field("touch_gap", "m", math.nan, 0.0, 0.05,
-              help="gap at first touch; default: from the contact search"),
-        Field("centre_angle", "rad", math.nan, -2 * math.pi, 2 * math.pi,
-              help="arm angle over the lower sphere; default: from the contact search"),
-    )
 
-    def parse(self, table: Mapping[str, Any], prefix: str, source: str | None) -> Params:
-        rest = {k: v for k, v in table.items() if k != "speeds"}
-        params = super().parse(rest, prefix, source)
-        raw = table.get("speeds", list(paper.SPEEDS))
-        if not isinstance(raw, list) or not raw:
-            raise ConfigError(f"{prefix}speeds", raw, "a non-empty list of speeds (m/s)", source)
-        params["speeds"] = [_SPEED.parse(v, f"{prefix}speeds[{i}].", source)
-                            for i, v in enumerate(raw)]
-        return params
-
-    def overlaps(self, params: Params) -> list[float]:
-        return [params["first_overlap"] + i * params["overlap_step"]
-                for i in range(int(params["overlaps"]))]
-
-    def plan(self, params: Params, limits: Any) -> StepPlan:
-        overlaps = self.overlaps(params)
-        per_overlap = sum(2 * params["travel"] / v + 2 * params["wait"] for v in params["speeds"])
+    def plan(self, params: LadderParams, limits: Limits) -> StepPlan:
+        p = params
+        overlaps = p.levels
+        per_overlap = sum(2 * p.travel / v + 2 * p.wait for v in p.speeds)
         lines = [
             f"overlaps {', '.join(f'{d * 1e3:.2f}' for d in overlaps)} mm below the touch gap",
             "speeds " + ", ".join(f"{v:.3g} m/s ({rpm_from_speed(v, paper.ARM):.4f} rpm)"
-                                  for v in params["speeds"]),
-            f"each: {params['travel'] * 1e3:g} mm clockwise, wait {params['wait']:g} s, back, "
-            f"wait; {len(overlaps) * len(params['speeds']) * 2} passes",
+                                  for v in p.speeds),
+            f"each: {p.travel * 1e3:g} mm clockwise, wait {p.wait:g} s, back, "
+            f"wait; {len(overlaps) * len(p.speeds) * 2} passes",
         ]
-        for v in params["speeds"]:
-            lines.append(f"  leg at {v:.3g} m/s lasts {params['travel'] / v:,.0f} s")
+        for v in p.speeds:
+            lines.append(f"  leg at {v:.3g} m/s lasts {p.travel / v:,.0f} s")
         checks = []
         if isinstance(limits, ShearLimits):
             ok = max(overlaps) <= limits.max_overlap
             checks.append(PlanCheck("overlap", ok, f"deepest overlap {max(overlaps) * 1e3:.2f} mm "
                                     f"{'<=' if ok else '>'} limit {limits.max_overlap * 1e3:g} mm"))
-        travel = len(overlaps) * len(params["speeds"]) * 2 * params["travel"]
+        travel = len(overlaps) * len(p.speeds) * 2 * p.travel
         return StepPlan(len(overlaps) * per_overlap, travel, lines, checks)
 
-    def run(self, ctx: StepContext, params: Params) -> dict[str, Any]:
+    def run(self, ctx: StepContext[ShearRig], params: LadderParams) -> LadderResult:
+        p = params
         rig = ctx.rig
-        assert isinstance(rig, ShearRig)
         rheo = rig.rheometer
         arm = rheo.config.arm
-        touch = params["touch_gap"]
-        if math.isnan(touch):
-            touch = ctx.result("touch_gap_m")
-        centre = params["centre_angle"]
-        if math.isnan(centre):
-            centre = ctx.result("lower_sphere_angle_rad")
-        if touch is None or centre is None or not math.isfinite(touch) \
-                or not math.isfinite(centre):
+        search = ctx.earlier(ShearSearchResult)
+        touch = p.touch_gap if p.touch_gap is not None else given(
+            search.touch_gap_m if search else None)
+        centre = p.centre_angle if p.centre_angle is not None else given(
+            search.lower_sphere_angle_rad if search else None)
+        if touch is None or centre is None:
             raise GelrigError("speed_ladder needs touch_gap and centre_angle, or a shear "
                               "contact search before it")
-        ctx.interlocks = (
-            Interlock("torque", "torque_Nm", rig.limits.max_torque, "N*m"),
-            Interlock("normal force", "normal_force_N", rig.limits.max_normal_force, "N"),
-        )
+        ctx.interlocks = rig.interlocks()
         if not rheo.status().gap_referenced:
             rheo.zero_gap()
-        rec = ArmRecorder(ctx, params["interval"], params["read_period"])
-        half = params["travel"] / 2 / arm
+        rec = ArmRecorder(ctx, p.interval, p.read_period)
+        half = p.travel / 2 / arm
         start, end = centre - half, centre + half
         reposition = min(rheo.config.max_speed, 1e-3)
-        overlaps = self.overlaps(params)
-        legs = len(overlaps) * len(params["speeds"]) * 2
+        overlaps = p.levels
+        legs = len(overlaps) * len(p.speeds) * 2
         plan = self.plan(params, rig.limits)
         t0 = ctx.clock.now()
         done = 0
@@ -112,14 +135,14 @@ class SpeedLadder(StepDefinition):
                 rheo.set_gap(touch + 0.5e-3)  # lift clear, go to the start angle, lower
                 rec.turn_to(start, reposition)
                 rheo.set_gap(touch - depth)
-                for speed in params["speeds"]:
+                for speed in p.speeds:
                     for direction, target in ((1.0, end), (-1.0, start)):
                         ctx.checkpoint()
                         rec.labels = {"pass": float(done), "direction": direction,
                                       "speed_m_s": speed, "overlap_m": depth}
                         rec.turn_to(target, speed)
                         rec.labels = {**rec.labels, "pass": -1.0}
-                        rec.dwell(params["wait"])
+                        rec.dwell(p.wait)
                         passes.append({"pass": done, "overlap_m": depth, "speed_m_s": speed,
                                        "direction": direction})
                         done += 1
@@ -130,4 +153,4 @@ class SpeedLadder(StepDefinition):
             rheo.set_gap(touch + 0.5e-3)
         finally:
             rec.close()
-        return {"touch_gap_m": touch, "centre_angle_rad": centre, "passes": passes}
+        return LadderResult(touch, centre, passes)

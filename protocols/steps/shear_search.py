@@ -11,83 +11,123 @@ It also locates the lower sphere's angle (the middle of the contact span of thos
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
 from instrument.errors import InstrumentError
-from instrument.fields import Field
+from instrument.fields import Field, Where, param
 from instrument.sliding import speed_from_rpm
 from protocols.context import StepContext
-from protocols.interlocks import Interlock
 from protocols.rig import ShearLimits, ShearRig
 from protocols.steps.arm import COLUMNS, ArmRecorder
-from protocols.steps.base import Params, PlanCheck, StepDefinition, StepPlan
+from protocols.steps.base import (
+    Limits,
+    PlanCheck,
+    StepDefinition,
+    StepParams,
+    StepPlan,
+    StepResult,
+)
 
 
-class ShearContactSearch(StepDefinition):
+@dataclass(frozen=True)
+class ShearSearchParams(StepParams):
+    """Parameters of the shear contact search (paper: 1 mm / 0.1 mm steps, 0.2 mN m at
+    0.5 rpm)."""
+
+    safe_gap: float = param(Field("safe_gap", "m", 8e-3, 0.0, 0.05, lo_open=True, display="mm",
+                                  help="gap to start from"))
+    coarse: float = param(Field("coarse", "m", 1e-3, 0.0, 5e-3, lo_open=True, display="mm",
+                                help="coarse gap step"))
+    fine: float = param(Field("fine", "m", 0.1e-3, 0.0, 1e-3, lo_open=True, display="mm",
+                              help="fine gap step"))
+    rpm: float = param(Field("rpm", "", 0.5, 0.0, 10.0, lo_open=True, help="sweep rate (rpm)"))
+    threshold: float = param(Field("threshold", "N*m", 0.2e-3, 0.0, 0.1, lo_open=True,
+                                   help="contact torque"))
+    reference_angle: float = param(Field("reference_angle", "rad", 0.0, -2 * math.pi,
+                                         2 * math.pi,
+                                         help="arm angle to sweep around and to return to"))
+    sweep: float = param(Field("sweep", "m", 30e-3, 0.0, 0.15, lo_open=True, display="mm",
+                               help="arc travel of one sweep at the arm, centred on the "
+                                    "reference angle"))
+    min_gap: float = param(Field("min_gap", "m", 0.0, 0.0, 0.05, display="mm",
+                                 help="lowest gap the search may try"))
+    interval: float = param(Field("interval", "s", 0.05, 0.001, 10.0,
+                                  help="measurement-stream interval"))
+    touch_passes: float = param(Field("touch_passes", "", 3, 0, 6, integer=True,
+                                      help="full passes for the touch-gap estimate (0: skip; "
+                                           "a line needs 2 or more)"))
+
+    def validate(self, where: Where) -> None:
+        if self.touch_passes == 1:  # one point cannot fix the line through sqrt(peak torque)
+            raise where.error("touch_passes", 1, "allowed: 0 (skip) or 2 to 6")
+
+
+@dataclass(frozen=True)
+class ShearSearchResult(StepResult):
+    """Where the threshold fired, and (with touch passes) the touch gap and lower sphere."""
+
+    contact_gap_m: float
+    contact_angle_rad: float
+    sweeps: int
+    touch_gap_m: float = math.nan
+    lower_sphere_angle_rad: float = math.nan
+    touch_fit: dict[str, list[float]] = field(default_factory=dict)
+
+
+class ShearContactSearch(StepDefinition[ShearRig, ShearSearchParams, ShearSearchResult]):
+    """Lower the arm's sphere step by step, sweeping for torque, until contact; then estimate
+    the touch gap and the lower sphere's angle."""
+
     kind: ClassVar[str] = "shear_contact_search"
-    rig: ClassVar[str] = "shear"
+    rig = ShearRig
+    Params = ShearSearchParams
+    Result = ShearSearchResult
     description: ClassVar[str] = "contact search"
     columns: ClassVar[dict[str, str]] = COLUMNS
-    fields: ClassVar[tuple[Field, ...]] = (
-        Field("safe_gap", "m", 8e-3, 0.0, 0.05, lo_open=True, help="gap to start from"),
-        Field("coarse", "m", 1e-3, 0.0, 5e-3, lo_open=True, help="coarse gap step"),
-        Field("fine", "m", 0.1e-3, 0.0, 1e-3, lo_open=True, help="fine gap step"),
-        Field("rpm", "", 0.5, 0.0, 10.0, lo_open=True, help="sweep rate (rpm)"),
-        Field("threshold", "N*m", 0.2e-3, 0.0, 0.1, lo_open=True, help="contact torque"),
-        Field("reference_angle", "rad", 0.0, -2 * math.pi, 2 * math.pi,
-              help="arm angle to sweep around and to return to"),
-        Field("sweep", "m", 30e-3, 0.0, 0.15, lo_open=True,
-              help="arc travel of one sweep at the arm, centred on the reference angle"),
-        Field("min_gap", "m", 0.0, 0.0, 0.05, help="lowest gap the search may try"),
-        Field("interval", "s", 0.05, 0.001, 10.0, help="measurement-stream interval"),
-        Field("touch_passes", "", 3, 0, 6, integer=True,
-              help="full passes for the touch-gap estimate (0: skip)"),
-    )
 
-    def plan(self, params: Params, limits: Any) -> StepPlan:
-        arm_speed = speed_from_rpm(params["rpm"], 0.027)
-        descents = (params["safe_gap"] - params["min_gap"]) / params["coarse"]
-        sweep_time = 2 * params["sweep"] / arm_speed
+    def plan(self, params: ShearSearchParams, limits: Limits) -> StepPlan:
+        p = params
+        arm_speed = speed_from_rpm(p.rpm, 0.027)
+        descents = (p.safe_gap - p.min_gap) / p.coarse
+        sweep_time = 2 * p.sweep / arm_speed
         lines = [
-            f"from gap {params['safe_gap'] * 1e3:g} mm: lower {params['coarse'] * 1e3:g} mm "
+            f"from gap {p.safe_gap * 1e3:g} mm: lower {p.coarse * 1e3:g} mm "
             "at a time, "
-            f"sweep {params['sweep'] * 1e3:g} mm at {params['rpm']:g} rpm for torque > "
-            f"{params['threshold'] * 1e3:g} mN m",
-            f"back off {params['coarse'] * 1e3:g} mm, then {params['fine'] * 1e3:g} mm steps "
+            f"sweep {p.sweep * 1e3:g} mm at {p.rpm:g} rpm for torque > "
+            f"{p.threshold * 1e3:g} mN m",
+            f"back off {p.coarse * 1e3:g} mm, then {p.fine * 1e3:g} mm steps "
             "stopping at the threshold; estimate the touch gap from "
-            f"{int(params['touch_passes'])} full passes",
+            f"{int(p.touch_passes)} full passes",
         ]
         checks = []
         if isinstance(limits, ShearLimits):
-            ok = params["threshold"] < limits.max_torque
-            checks.append(PlanCheck("torque", ok, f"threshold {params['threshold'] * 1e3:g} mN m "
+            ok = p.threshold < limits.max_torque
+            checks.append(PlanCheck("torque", ok, f"threshold {p.threshold * 1e3:g} mN m "
                                     f"{'<' if ok else '>='} torque limit "
                                     f"{limits.max_torque * 1e3:g} mN m"))
-        duration = (descents + params["coarse"] / params["fine"] + params["touch_passes"]) \
+        duration = (descents + p.coarse / p.fine + p.touch_passes) \
             * sweep_time
-        return StepPlan(duration, (descents + 10) * 2 * params["sweep"], lines, checks)
+        return StepPlan(duration, (descents + 10) * 2 * p.sweep, lines, checks)
 
-    def run(self, ctx: StepContext, params: Params) -> dict[str, Any]:
+    def run(self, ctx: StepContext[ShearRig], params: ShearSearchParams) -> ShearSearchResult:
+        p = params
         rig = ctx.rig
-        assert isinstance(rig, ShearRig)
         rheo = rig.rheometer
         arm = rheo.config.arm
-        speed = speed_from_rpm(params["rpm"], arm)
-        threshold = params["threshold"]
-        ctx.interlocks = (
-            Interlock("torque", "torque_Nm", rig.limits.max_torque, "N*m"),
-            Interlock("normal force", "normal_force_N", rig.limits.max_normal_force, "N"),
-        )
-        rec = ArmRecorder(ctx, params["interval"], read_period=max(params["interval"], 0.5))
-        half = params["sweep"] / 2 / arm
-        ref = params["reference_angle"]
+        speed = speed_from_rpm(p.rpm, arm)
+        threshold = p.threshold
+        ctx.interlocks = rig.interlocks()
+        rec = ArmRecorder(ctx, p.interval, read_period=max(p.interval, 0.5))
+        half = p.sweep / 2 / arm
+        ref = p.reference_angle
         lo_angle, hi_angle = ref - half, ref + half
         try:
             if not rheo.status().gap_referenced:
                 rheo.zero_gap()
-            gap = params["safe_gap"]
+            gap = p.safe_gap
             rheo.set_gap(gap)
             rec.turn_to(lo_angle, speed)
             sweeps = 0
@@ -100,7 +140,7 @@ class ShearContactSearch(StepDefinition):
                 target = hi_angle if start < ref else lo_angle
                 hit = rec.turn_to(target, speed, stop_above=threshold)
                 if hit is not None:  # lift clear, return to the start side, lower again
-                    rheo.set_gap(gap + params["coarse"])
+                    rheo.set_gap(gap + p.coarse)
                     rec.turn_to(lo_angle if target == hi_angle else hi_angle, speed)
                     rheo.set_gap(gap)
                 ctx.progress(0.0, 0.0, 0.0, f"sweep {sweeps} at gap {gap * 1e3:.3f} mm",
@@ -108,30 +148,29 @@ class ShearContactSearch(StepDefinition):
                 return hit
 
             while True:  # coarse
-                if gap - params["coarse"] < params["min_gap"] - 1e-12:
+                if gap - p.coarse < p.min_gap - 1e-12:
                     raise InstrumentError(
                         f"no torque above {threshold * 1e3:g} mN m down to gap "
-                        f"{params['min_gap'] * 1e3:g} mm; check the spheres and the sweep")
-                gap -= params["coarse"]
+                        f"{p.min_gap * 1e3:g} mm; check the spheres and the sweep")
+                gap -= p.coarse
                 self._set_gap(rec, gap, lo_angle, hi_angle)
                 if sweep() is not None:
                     break
-            gap += params["coarse"]
+            gap += p.coarse
             self._set_gap(rec, gap, lo_angle, hi_angle)
             while True:  # fine
                 hit = sweep()
                 if hit is not None:
                     break
-                gap -= params["fine"]
+                gap -= p.fine
                 self._set_gap(rec, gap, lo_angle, hi_angle)
             contact_gap, contact_angle = gap, hit
             touch = self._touch_gap(ctx, rec, contact_gap, params, speed, lo_angle, hi_angle)
-            rheo.set_gap(params["safe_gap"])
+            rheo.set_gap(p.safe_gap)
             rec.turn_to(ref, speed)
         finally:
             rec.close()
-        return {"contact_gap_m": contact_gap, "contact_angle_rad": contact_angle,
-                "sweeps": sweeps, **touch}
+        return ShearSearchResult(contact_gap, contact_angle, sweeps, **touch)
 
     @staticmethod
     def _set_gap(rec: ArmRecorder, gap: float, lo: float, hi: float) -> None:
@@ -143,15 +182,17 @@ class ShearContactSearch(StepDefinition):
 
     @staticmethod
     def _touch_gap(
-        ctx: StepContext, rec: ArmRecorder, contact_gap: float, params: Params, speed: float,
+        ctx: StepContext[ShearRig], rec: ArmRecorder, contact_gap: float,
+        params: ShearSearchParams, speed: float,
         lo: float, hi: float,
     ) -> dict[str, Any]:
-        passes = int(params["touch_passes"])
+        p = params
+        passes = int(p.touch_passes)
         if passes == 0:
             return {}
         gaps, peaks, centres = [], [], []
         for k in range(passes):
-            gap = contact_gap - k * params["fine"] / 2
+            gap = contact_gap - k * p.fine / 2
             ShearContactSearch._set_gap(rec, gap, lo, hi)
             ctx.checkpoint()
             rec.kept, rec.keep = [], True

@@ -5,8 +5,8 @@ In-process, on a shared clock (the plate position comes from the stage simulator
     clock = VirtualClock()
     device = compression_daq(clock, plate_position, first_touch=0.004)
     with start_server(device) as server:  # 127.0.0.1, ephemeral port
-        sensor = Usb6001ForceSensor.open(f"grpc://{server.address}", Usb6001Config(),
-                                         LoadCellChain(), clock)
+        sensor = Usb6001ForceSensor(f"grpc://{server.address}", Usb6001Config(),
+                                    LoadCellChain(), clock).open()
 """
 
 from simulators.usb6001.device import DeviceSpec, SimulatedUsb6001

@@ -36,7 +36,7 @@ def rig(
     clock = VirtualClock()
     sim = MCR501Simulator(clock, sim_config if sim_config is not None else SimConfig())
     with SimulatorServer(sim) as server:
-        drv = MCR501.open(server.resource, clock, config, resource_manager=rm)
+        drv = MCR501(server.resource, clock, config, resource_manager=rm).open()
         try:
             yield Rig(clock, sim, server, drv)
         finally:

@@ -32,13 +32,15 @@ def test_from_mapping_accepts_units_and_si_numbers() -> None:
 @pytest.mark.parametrize(
     ("table", "field", "says"),
     [
-        ({"max_velocity": "5 mm/s"}, "stage.max_velocity", "allowed: a number in (0, 0.0026] m/s"),
-        ({"max_position": "30 mm"}, "stage.max_position", "allowed: a number in [0, 0.025] m"),
-        ({"counts_per_mm": 0}, "stage.counts_per_mm", "allowed: a number in (1000,"),
-        ({"min_position": "5 mm", "max_position": "4 mm"}, "stage.min_position", "< max"),
-        ({"max_velocity": "2 mm"}, "stage.max_velocity", "dimension"),
-        ({"speed": 1}, "stage.speed", "unknown field"),
-        ({"poll_interval": True}, "stage.poll_interval", "expected a number"),
+        ({"max_velocity": "5 mm/s"}, "[stage] max_velocity",
+         "= \"5 mm/s\": allowed (0, 2.6] mm/s"),
+        ({"max_position": "30 mm"}, "[stage] max_position",
+         "= \"30 mm\": allowed [0, 25] mm"),
+        ({"counts_per_mm": 0}, "[stage] counts_per_mm", "= 0: allowed (1000,"),
+        ({"min_position": "5 mm", "max_position": "4 mm"}, "[stage] min_position", "< max"),
+        ({"max_velocity": "2 mm"}, "[stage] max_velocity", "dimension"),
+        ({"speed": 1}, "[stage] speed", "unknown field"),
+        ({"poll_interval": True}, "[stage] poll_interval", "expected a number"),
     ],
 )
 def test_bad_values_name_file_field_and_range(table: dict[str, object], field: str, says: str

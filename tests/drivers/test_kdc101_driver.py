@@ -33,7 +33,7 @@ def rig() -> Iterator[Rig]:
     sim = KDC101Simulator(clock)
     name = f"drv{next(_names)}"
     url = register(sim, name)
-    stage = KDC101(url, StageConfig(max_position_m=20e-3), clock)
+    stage = KDC101(url, StageConfig(max_position_m=20e-3), clock).open()
     yield Rig(clock, sim, url, stage)
     stage.close()
     unregister(name)
@@ -46,10 +46,9 @@ def test_it_is_a_stage(rig: Rig) -> None:
 def test_identify_reads_the_kdc101_info(rig: Rig) -> None:
     ident = rig.stage.identify()
     assert ident.model == "KDC101"
-    assert str(ident.serial_number).startswith("27")
-    assert ident.serial_number == 27000001
-    assert ident.channels == 1
-    assert ident.firmware == "3.0.10"
+    assert (ident.vendor, ident.serial, ident.firmware) == ("Thorlabs", "27000001", "3.0.10")
+    assert ident.extra["channels"] == "1"
+    assert ident.extra["serial_number"] == "27000001"  # run.json's former key
 
 
 def test_open_sequence_sends_no_flash_programming_first_and_enables(rig: Rig) -> None:
@@ -201,7 +200,7 @@ def test_status_updates_are_kept_alive_by_the_driver() -> None:
     sim = KDC101Simulator(clock)
     url = register(sim, "keepalive")
     try:
-        stage = KDC101(url, clock=clock, status_updates=True)
+        stage = KDC101(url, clock=clock, status_updates=True).open()
         stage.home()  # ~5.6 s of reading: 56 updates, more than the 50 unacknowledged limit
         stage.move_to(5e-3)
         assert stage.last_status_update is not None
@@ -221,7 +220,7 @@ def test_calibration_mismatch_is_visible_with_a_wrong_counts_per_mm() -> None:
     sim = KDC101Simulator(clock, SimConfig(counts_per_mm=34554.96))
     url = register(sim, "calib")
     try:
-        stage = KDC101(url, StageConfig(counts_per_mm=34304.0), clock)
+        stage = KDC101(url, StageConfig(counts_per_mm=34304.0), clock).open()
         stage.home()
         stage.move_to(10e-3)
         travelled = sim.position_at(clock.now()) - sim.counter_origin_m

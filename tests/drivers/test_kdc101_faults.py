@@ -32,7 +32,7 @@ def _rig(config: SimConfig | None = None) -> Iterator[Rig]:
     clock = VirtualClock()
     sim = KDC101Simulator(clock, config)
     name = f"fault{next(_names)}"
-    stage = KDC101(register(sim, name), clock=clock)
+    stage = KDC101(register(sim, name), clock=clock).open()
     stage.home()
     yield Rig(clock, sim, stage)
     stage.close()
@@ -125,7 +125,7 @@ def test_disconnect_mid_move_raises_and_tries_to_stop(rig: Rig) -> None:
 
 def test_open_on_an_unknown_simulator_is_a_typed_error() -> None:
     with pytest.raises(Disconnected, match="cannot open"):
-        KDC101("kdc101sim://nobody-registered", clock=VirtualClock())
+        KDC101("kdc101sim://nobody-registered", clock=VirtualClock()).open()
 
 
 def test_tcp_peer_vanishing_mid_move_raises_disconnected() -> None:
@@ -133,7 +133,7 @@ def test_tcp_peer_vanishing_mid_move_raises_disconnected() -> None:
     sim = KDC101Simulator(clock)
     server = TcpServer(sim).start()
     try:
-        stage = KDC101(server.address, clock=clock)
+        stage = KDC101(server.address, clock=clock).open()
         stage.move_by(10e-3, wait=False)
         sim.disconnect()  # the server drops the connection
         with pytest.raises(InstrumentError) as info:

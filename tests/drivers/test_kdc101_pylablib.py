@@ -97,7 +97,7 @@ def test_kinesis_motor_over_the_tcp_server() -> None:
 
 
 def test_stage_on_pylablib_homes_moves_and_refuses_limits(sim: Sim) -> None:
-    stage = PylablibKDC101(sim.url, StageConfig(max_position_m=15e-3), sim.clock)
+    stage = PylablibKDC101(sim.url, StageConfig(max_position_m=15e-3), sim.clock).open()
     try:
         assert isinstance(stage, Stage)
         assert stage.identity.model == "KDC101"
@@ -119,7 +119,7 @@ def test_stage_on_pylablib_homes_moves_and_refuses_limits(sim: Sim) -> None:
 
 
 def test_stage_on_pylablib_maps_error_replies(sim: Sim) -> None:
-    stage = PylablibKDC101(sim.url, clock=sim.clock)
+    stage = PylablibKDC101(sim.url, clock=sim.clock).open()
     try:
         stage.motor.send_comm(0x0210, 1, 2)  # disable the channel
         with pytest.raises(DeviceErrorReply):

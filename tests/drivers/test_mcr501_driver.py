@@ -31,7 +31,10 @@ def test_driver_meets_the_rheometer_protocol(rm: Any) -> None:
 
 def test_identify_through_pyvisa_py(rm: Any) -> None:
     with rig(rm, SimConfig(identity=("MCR501", "SN123", "03.40"))) as r:
-        assert r.drv.identify() == "MCR501 SN123 firmware 03.40"
+        ident = r.drv.identify()
+        assert (ident.vendor, ident.model, ident.serial, ident.firmware) == (
+            "Anton Paar", "MCR501", "SN123", "03.40")
+        assert ident.extra["identity"] == "MCR501 SN123 firmware 03.40"
         assert isinstance(r.drv._transport, VisaTransport)
         assert type(r.drv._transport.resource).__name__ == "TCPIPSocket"
 
@@ -146,7 +149,7 @@ def test_measurement_stream_in_virtual_time(rm: Any) -> None:
 def _stream_with_polling(poll: float | None) -> list[tuple[float, ...]]:
     clock = VirtualClock()
     sim = MCR501Simulator(clock, SimConfig(start_referenced=True, seed=7))
-    drv = MCR501(DirectLink(sim), clock)
+    drv = MCR501(DirectLink(sim), clock).open()
     drv.set_gap(sim.config.touch_gap - 0.5e-3)
     drv.start_stream(0.2)
     drv.rotate(4e-3)

@@ -58,7 +58,7 @@ def test_malformed_reply_raises_framing_error_and_stops(rm: Any) -> None:
             r.drv.angle()
         assert r.sim.log[-1] == ":STOP[]"
         assert r.arm_stopped()
-        assert r.drv.identify().startswith("MCR501")  # back in step after the fault
+        assert r.drv.identify().model == "MCR501"  # back in step after the fault
 
 
 def test_timeout_raises_and_stops(rm: Any) -> None:

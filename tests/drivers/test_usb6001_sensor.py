@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import grpc
 import nidaqmx
@@ -58,8 +59,8 @@ class Served:
 
     def sensor(self, config: Usb6001Config | None = None,
                chain: LoadCellChain | None = None) -> Usb6001ForceSensor:
-        return Usb6001ForceSensor(config or Usb6001Config(), chain or LoadCellChain(),
-                                  self.device.clock, self.options)
+        return Usb6001ForceSensor(self.options, config or Usb6001Config(),
+                                  chain or LoadCellChain(), self.device.clock).open()
 
     def close(self) -> None:
         self.channel.close()
@@ -88,10 +89,11 @@ def still_plate(clock: Clock, overlap: float, material: Material = PLATES, **kw:
 def test_meets_the_force_sensor_contract(serve: Callable[..., Served]) -> None:
     with serve(still_plate(VirtualClock(), -1e-3)).sensor() as sensor:
         assert isinstance(sensor, ForceSensor)
-        ident = sensor.identity()
-        assert ident["instrument"] == "NI USB-6001"
-        assert ident["channel"] == "Dev1/ai0"
-        assert ident["transport"] == "grpc"
+        ident = sensor.identify()
+        assert (ident.vendor, ident.model) == ("NI", "USB-6001")
+        assert ident.extra["instrument"] == "NI USB-6001"
+        assert ident.extra["channel"] == "Dev1/ai0"
+        assert ident.extra["transport"] == "grpc"
 
 
 def test_converts_to_newtons_and_tares(serve: Callable[..., Served]) -> None:
@@ -194,7 +196,8 @@ def test_over_range_can_be_flagged_instead(serve: Callable[..., Served]) -> None
 def test_missing_nidaqmx_driver_gives_a_clear_message() -> None:
     """Without NI-DAQmx (as on this machine) the local path names the two ways out."""
     try:
-        sensor = Usb6001ForceSensor.open("local", Usb6001Config(), LoadCellChain(), VirtualClock())
+        sensor = Usb6001ForceSensor("local", Usb6001Config(), LoadCellChain(),
+                                    VirtualClock()).open()
     except DaqDriverNotFoundError as exc:
         text = str(exc)
         assert "NI-DAQmx" in text and "Install" in text
@@ -215,14 +218,14 @@ def test_missing_device_on_the_server(serve: Callable[..., Served]) -> None:
 
 def test_unreachable_server_is_a_disconnection() -> None:
     with grpc.insecure_channel("127.0.0.1:1") as channel, pytest.raises(Disconnected):
-        Usb6001ForceSensor(Usb6001Config(), LoadCellChain(), VirtualClock(),
-                           nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name=""))
+        Usb6001ForceSensor(nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name=""),
+                           Usb6001Config(), LoadCellChain(), VirtualClock()).open()
 
 
 def test_open_by_address_owns_and_closes_its_channel(serve: Callable[..., Served]) -> None:
     served = serve(still_plate(VirtualClock(), -1e-3))
-    sensor = Usb6001ForceSensor.open(f"grpc://{served.server.address}", Usb6001Config(),
-                                     LoadCellChain(), served.device.clock)
+    sensor = Usb6001ForceSensor(f"grpc://{served.server.address}", Usb6001Config(),
+                                LoadCellChain(), served.device.clock).open()
     sensor.start(200.0)
     assert len(sensor.read_block(10)) == 10
     sensor.close()
@@ -230,7 +233,7 @@ def test_open_by_address_owns_and_closes_its_channel(serve: Callable[..., Served
     with pytest.raises(InstrumentError, match="closed"):
         sensor.start(200.0)
     with pytest.raises(ConfigError, match="address"):
-        Usb6001ForceSensor.open("tcp-somewhere", Usb6001Config(), LoadCellChain(), VirtualClock())
+        Usb6001ForceSensor("tcp-somewhere", Usb6001Config(), LoadCellChain(), VirtualClock())
 
 
 @pytest.mark.parametrize("rate", [50.0, 20_001.0])
@@ -259,10 +262,11 @@ def test_differential_wiring_is_passed_to_the_device(serve: Callable[..., Served
 
 @pytest.mark.parametrize(
     ("mapping", "field"),
-    [({"terminal": "NRSE"}, "terminal"), ({"channel": "ai5", "terminal": "diff"}, "channel"),
-     ({"buffer_seconds": "2 h"}, "buffer_seconds"), ({"over_range_volts": "11 V"},
-                                                     "over_range_volts"),
-     ({"device": 3}, "device"), ({"speed": 1}, "speed")],
+    [({"terminal": "NRSE"}, "[force] terminal"),
+     ({"channel": "ai5", "terminal": "diff"}, "[force] channel"),
+     ({"buffer_seconds": "2 h"}, "[force] buffer_seconds"), ({"over_range_volts": "11 V"},
+                                                     "[force] over_range_volts"),
+     ({"device": 3}, "[force] device"), ({"speed": 1}, "[force] speed")],
 )
 def test_config_from_mapping_names_the_field(mapping: dict[str, object], field: str) -> None:
     with pytest.raises(ConfigError) as info:
@@ -276,3 +280,70 @@ def test_config_from_mapping_accepts_units() -> None:
         {"device": "Dev2", "channel": "ai3", "terminal": "diff", "buffer_seconds": "1 min"})
     assert (config.physical_channel, config.terminal, config.buffer_seconds) == (
         "Dev2/ai3", "DIFF", 60.0)
+
+
+# ---- lifecycle (ADR 0050) -----------------------------------------------------------------
+def test_constructing_does_no_io(serve: Callable[..., Served]) -> None:
+    sensor = Usb6001ForceSensor("grpc://127.0.0.1:1", Usb6001Config(), LoadCellChain(),
+                                VirtualClock())  # nobody listens there
+    assert not sensor.is_open
+    with pytest.raises(Disconnected):
+        sensor.open()
+    assert not sensor.is_open
+    sensor.close()
+    served = serve(still_plate(VirtualClock(), -1e-3))
+    sensor = Usb6001ForceSensor(served.options, Usb6001Config(), LoadCellChain(),
+                                served.device.clock)
+    assert served.device._tasks == {}
+    with sensor:
+        assert len(served.device._tasks) == 1
+        assert sensor.identify().model == "USB-6001"
+    assert served.device._tasks == {}
+    sensor.close()  # idempotent
+
+
+class _InterruptRead(grpc.UnaryUnaryClientInterceptor):  # type: ignore[misc]
+    """Ctrl-C just after a read RPC returned: samples left the server but were never counted."""
+
+    def __init__(self) -> None:
+        self.armed = False
+
+    def intercept_unary_unary(self, continuation: Any, details: Any, request: Any) -> Any:
+        response = continuation(details, request)
+        if self.armed and details.method.endswith("/ReadAnalogF64"):
+            self.armed = False
+            raise KeyboardInterrupt
+        return response
+
+
+def test_ctrl_c_during_a_read_stops_the_acquisition(serve: Callable[..., Served]) -> None:
+    served = serve(still_plate(VirtualClock(), -1e-3))
+    interrupt = _InterruptRead()
+    channel = grpc.intercept_channel(served.channel, interrupt)
+    options = nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name="")
+    with Usb6001ForceSensor(options, Usb6001Config(), LoadCellChain(),
+                            served.device.clock) as sensor:
+        sensor.start(1000.0)
+        assert len(sensor.read_block(100)) == 100
+        (task,) = served.device._tasks.values()
+        assert task.running
+        interrupt.armed = True
+        with pytest.raises(KeyboardInterrupt):
+            sensor.read_block(100)
+        assert not task.running  # StopTask reached the device
+        with pytest.raises(InstrumentError, match="before start"):
+            sensor.read_block(10)  # the next block needs a fresh start(), counted from zero
+        t0 = served.device.clock.now()
+        sensor.start(1000.0)
+        assert sensor.read_block(10).t[0] == pytest.approx(t0)
+
+
+def test_typed_read_errors_leave_the_acquisition_running(serve: Callable[..., Served]) -> None:
+    chain = LoadCellChain(gain=40_000.0)
+    served = serve(still_plate(VirtualClock(), DEPTH, chain=chain))
+    with served.sensor() as sensor:
+        sensor.start(100.0)
+        with pytest.raises(ForceOverRangeError):
+            sensor.read_block(100)
+        (task,) = served.device._tasks.values()
+        assert task.running  # every sample is accounted for: the caller may read on

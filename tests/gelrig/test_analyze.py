@@ -1,7 +1,7 @@
 """``gelrig analyze`` on runs recorded from the simulated rigs, complete and broken.
 
 The shear run: a shortened ladder (2 overlaps x 3 speeds, C and AC) on the built-in
-simulated MCR 501 (hidden truth of gelrig/rigs/shear.toml: G_e 4 kPa, 20 kPa / 2000 s,
+simulated MCR 501 (hidden truth of protocols/rigs/shear.toml: G_e 4 kPa, 20 kPa / 2000 s,
 mu 5e-3, touch gap 3 mm, lower sphere at 0.8 rad), given a touch gap 12 um and a centre
 angle 0.7 mrad off, as the contact search reports them. The compression run: a ramp to 6 %
 and a 600 s hold at 100 Hz (truth: G_e 7146 Pa, 630 Pa / 1413 s).
@@ -17,12 +17,12 @@ import pytest
 
 from gelrig.analyze_run import analyze_run
 from gelrig.cli import main
-from gelrig.rigfile import default_rig, load_rig
 from gelrig.session import execute
 from instrument.clock import VirtualClock
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory
 from protocols.events import RunState
+from protocols.rigfile import default_rig, load_rig
 from protocols.spec import parse_protocol
 
 SHEAR_STEPS = [{"kind": "speed_ladder", "name": "ladder", "overlaps": 2,

@@ -68,20 +68,22 @@ def test_bad_protocol_file(tmp_path, capsys):
     path.write_text(SHORT.format(hold="-5 s"))
     assert main(["run", str(path), "--out", str(tmp_path / "r")]) == 2
     line = one_error_line(capsys)
-    assert "bad.toml" in line and "step[1].hold" in line and "-5" in line
+    assert "bad.toml" in line and "[step[1]] hold" in line and "-5" in line
     assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.parametrize("edit,field", [
-    (("max_position = \"12 mm\"", "max_position = \"40 mm\""), "stage.max_position"),
+    (("max_position = \"12 mm\"", "max_position = \"40 mm\""),
+     "[stage] max_position = \"40 mm\": allowed [0, 25] mm"),
     (("transport = \"simulator\"\ncounts_per_mm", "transport = \"usb\"\ncounts_per_mm"),
-     "stage.transport"),
-    (("max_force = \"2 N\"", "max_force = \"-2 N\""), "limits.max_force"),
-    (("gain = 1000", "gain = \"loud\""), "gain"),
-    (("[limits]", "[limitz]"), "limitz"),
+     "[stage] transport = \"usb\": allowed: simulator, serial"),
+    (("max_force = \"2 N\"", "max_force = \"-2 N\""),
+     "[limits] max_force = \"-2 N\": allowed (0, 100] N"),
+    (("gain = 1000", "gain = \"loud\""), "[force.chain] gain = \"loud\""),
+    (("[limits]", "[limitz]"), "[limitz]"),
 ])
 def test_bad_rig_file(tmp_path, capsys, short, edit, field):
-    from gelrig.rigfile import default_rig
+    from protocols.rigfile import default_rig
 
     text = default_rig("compression").read_text()
     assert edit[0] in text
@@ -93,7 +95,7 @@ def test_bad_rig_file(tmp_path, capsys, short, edit, field):
 
 
 def test_clock_checks(tmp_path, capsys, short):
-    from gelrig.rigfile import default_rig
+    from protocols.rigfile import default_rig
 
     assert main(["run", str(short()), "--clock", "paced:0", "--out", str(tmp_path / "a")]) == 2
     assert "--clock" in one_error_line(capsys)

@@ -15,11 +15,11 @@ from PySide6.QtGui import QColor, QImage
 from PySide6.QtWidgets import QMessageBox
 
 from gelrig.commands.gui import make_services
-from gelrig.rigfile import default_rig
 from gui.binding import binding_problem
 from gui.mainwindow import MainWindow
 from gui.plots import CompressionPlots, ShearPlots, colour
 from protocols.events import RunState
+from protocols.rigfile import default_rig
 from simulators.kdc101.protocol_kdc101sim import lookup
 
 BINDING = binding_problem()
@@ -175,14 +175,14 @@ def test_an_invalid_parameter_shows_its_message_and_disables_run(qtbot, open_win
     qtbot.keyClicks(entry.edit, "5 mm/s")  # over the 2.3 mm/s the step allows
     assert not panel.run_button.isEnabled()
     qtbot.waitUntil(entry.error.isVisible, timeout=2_000)  # beside the field
-    assert entry.error.text() == "allowed: a number in (0, 0.0023] m/s"
+    assert entry.error.text() == "allowed (0, 2.3] mm/s"
     entry.edit.clear()
     qtbot.keyClicks(entry.edit, "0.3 mm")  # wrong dimension
     assert not panel.run_button.isEnabled() and "m/s" in entry.error.text()
     entry.edit.clear()
     qtbot.keyClicks(entry.edit, "0.3 mm/s")
     assert panel.run_button.isEnabled() and entry.error.isHidden()
-    assert panel.spec.steps[0].params["speed"] == pytest.approx(0.3e-3)
+    assert panel.spec.steps[0].params.speed == pytest.approx(0.3e-3)
     strain = panel.form.entry(1, "strain")
     strain.edit.setText("0.2")  # valid alone, but 3.7 mm deep is past the 2.5 mm overlap limit
     assert not panel.run_button.isEnabled()

@@ -6,7 +6,6 @@ import pytest
 from instrument import paper
 from instrument.analysis import (
     contact_length,
-    find_hold_start,
     fit_hold,
     fit_relaxation,
     modulus_history,
@@ -58,10 +57,22 @@ def test_fit_without_overlap_finds_the_hold_from_the_force():
     assert fit.relax[0].tau == pytest.approx(1413.0, rel=0.03)
 
 
-def test_hold_start_from_overlap():
-    t = np.linspace(0, 100, 1001)
-    delta = np.minimum(t * 1e-5, 3e-4)
-    assert t[find_hold_start(t, delta=delta)] == pytest.approx(30.0, abs=0.1)
+def test_fit_leaves_out_the_retract_after_the_hold():
+    rec, force = noisy_hold(paper.PLATES, 8)
+    back = np.linspace(1.0, 0.0, 2001)[1:]  # a 20 s retract: overlap and force fall back
+    t = np.concatenate((rec.t, rec.t[-1] + 0.01 * np.arange(1, 2001)))
+    delta = np.concatenate((rec.delta, rec.delta[-1] * back))
+    with_retract = np.concatenate((force, force[-1] * back**1.5))
+    fit = fit_hold(t, with_retract, R, D, terms=1, delta=delta)
+    held = fit_hold(rec.t, force, R, D, terms=1, delta=rec.delta)
+    assert fit.n_samples == held.n_samples
+    assert fit.g_e == pytest.approx(held.g_e, rel=1e-9)
+
+
+def test_fit_needs_a_hold():
+    t = np.linspace(0, 10, 100)
+    with pytest.raises(ConfigError, match="samples"):
+        fit_hold(t, np.ones(100), R, D, delta=np.full(100, np.nan))
 
 
 def test_fit_needs_enough_samples_and_valid_terms():

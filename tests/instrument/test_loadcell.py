@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from hypothesis import given
@@ -11,7 +9,6 @@ from hypothesis import strategies as st
 
 from instrument.errors import ConfigError, InstrumentTimeout
 from instrument.loadcell import (
-    _FIELDS,
     AcquisitionTimeoutError,
     ForceBlock,
     ForceSensor,
@@ -62,13 +59,13 @@ def test_from_mapping_accepts_units() -> None:
 @pytest.mark.parametrize(
     ("mapping", "field", "needle"),
     [
-        ({"rated_output": 2}, "rated_output", "(0, 0.01] V/V"),
-        ({"capacity": "-1 N"}, "capacity", "(0, 100000] N"),
-        ({"offset": "11 V"}, "offset", "[-10.5, 10.5] V"),
-        ({"excitation": "5 A"}, "excitation", "dimension"),
-        ({"gain": True}, "gain", "number"),
-        ({"gain": [1]}, "gain", "number"),
-        ({"sensitivity": 4}, "sensitivity", "unknown field"),
+        ({"rated_output": 2}, "[force.chain] rated_output", "(0, 0.01] V/V"),
+        ({"capacity": "-1 N"}, "[force.chain] capacity", "(0, 100000] N"),
+        ({"offset": "11 V"}, "[force.chain] offset", "[-10.5, 10.5] V"),
+        ({"excitation": "5 A"}, "[force.chain] excitation", "dimension"),
+        ({"gain": True}, "[force.chain] gain", "number"),
+        ({"gain": [1]}, "[force.chain] gain", "number"),
+        ({"sensitivity": 4}, "[force.chain] sensitivity", "unknown field"),
     ],
 )
 def test_from_mapping_names_field_value_and_range(
@@ -85,10 +82,6 @@ def test_from_mapping_names_field_value_and_range(
 def test_constructor_validates_too() -> None:
     with pytest.raises(ConfigError, match="bandwidth"):
         LoadCellChain(bandwidth=0.0)
-
-
-def test_field_table_covers_the_dataclass() -> None:
-    assert [f.key for f in _FIELDS] == [f.name for f in dataclasses.fields(LoadCellChain)]
 
 
 def test_force_block_flags() -> None:

@@ -8,6 +8,7 @@ import math
 import pytest
 
 from instrument.errors import ConfigError
+from instrument.identity import Identity
 from instrument.rheometer import Rheometer, RheometerConfig, RheometerStatus, StreamPoint
 
 
@@ -34,15 +35,15 @@ def test_from_mapping_accepts_units_at_the_edge() -> None:
 @pytest.mark.parametrize(
     ("mapping", "field", "allowed"),
     [
-        ({"arm": -0.027}, "arm", "allowed: a number in [0.001, 0.5] m"),
-        ({"arm": "27 N"}, "arm", "dimension mismatch"),
-        ({"torque_range": 0}, "torque_range", "allowed: a number in (0, 1] N*m"),
-        ({"max_speed": math.inf}, "max_speed", "finite"),
-        ({"overlap_limit": "2 cm"}, "overlap_limit", "allowed: a number in (0, 0.01] m"),
-        ({"gap_min": 0.03, "gap_max": 0.02}, "gap_min", "must be < gap_max"),
-        ({"colour": "red"}, "colour", "unknown field"),
-        ({"timeout": True}, "timeout", "expected a number"),
-        ({"poll_interval": [1]}, "poll_interval", "expected a number"),
+        ({"arm": -0.027}, "[rheometer] arm", "allowed [0.001, 0.5] m"),
+        ({"arm": "27 N"}, "[rheometer] arm", "dimension mismatch"),
+        ({"torque_range": 0}, "[rheometer] torque_range", "allowed (0, 1] N*m"),
+        ({"max_speed": math.inf}, "[rheometer] max_speed", "finite"),
+        ({"overlap_limit": "2 cm"}, "[rheometer] overlap_limit", "allowed (0, 1] cm"),
+        ({"gap_min": 0.03, "gap_max": 0.02}, "[rheometer] gap_min", "must be < gap_max"),
+        ({"colour": "red"}, "[rheometer] colour", "unknown field"),
+        ({"timeout": True}, "[rheometer] timeout", "expected a number"),
+        ({"poll_interval": [1]}, "[rheometer] poll_interval", "expected a number"),
     ],
 )
 def test_bad_values_name_source_field_value_and_range(
@@ -80,7 +81,7 @@ def test_status_busy_and_stream_point() -> None:
 
 def test_protocol_is_structural() -> None:
     class Partial:
-        def identify(self) -> str:
-            return "x"
+        def identify(self) -> Identity:
+            return Identity("x", "y", "1")
 
     assert not isinstance(Partial(), Rheometer)

@@ -16,7 +16,7 @@ from protocols.rig import CompressionLimits
 from protocols.runner import Runner
 from protocols.spec import paper_protocol, parse_protocol
 
-TRUE_TOUCH = 6.2e-3  # gelrig/rigs/compression.toml [simulator] first_touch
+TRUE_TOUCH = 6.2e-3  # protocols/rigs/compression.toml [simulator] first_touch
 TRUE_G_E, TRUE_TAU = 7146.0, 1413.0
 
 

@@ -25,8 +25,8 @@ def short_ladder(**params):
 def paper_run(tmp_path_factory):
     """The paper's shear protocol on the built-in simulated rig (TCP), recorded."""
     from gelrig.factory import build_rig
-    from gelrig.rigfile import default_rig, load_rig
     from instrument.clock import VirtualClock
+    from protocols.rigfile import default_rig, load_rig
 
     rig = build_rig(load_rig(default_rig("shear")), VirtualClock())
     run = RunDirectory.create(tmp_path_factory.mktemp("shear") / "run", {})
@@ -44,7 +44,7 @@ def test_paper_shear_protocol_completes_and_finds_the_contact(paper_run):
     state, runner, _ = paper_run
     assert state is RunState.COMPLETED, runner.reason
     search = runner.results[0]
-    # hidden truth of gelrig/rigs/shear.toml: touch gap 3 mm, lower sphere at 0.8 rad
+    # hidden truth of protocols/rigs/shear.toml: touch gap 3 mm, lower sphere at 0.8 rad
     assert search["touch_gap_m"] == pytest.approx(3e-3, abs=0.1e-3)
     assert search["touch_gap_m"] == pytest.approx(3e-3, abs=0.03e-3)
     assert search["lower_sphere_angle_rad"] == pytest.approx(0.8, abs=0.01)

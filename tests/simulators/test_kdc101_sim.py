@@ -237,7 +237,7 @@ def test_plate_position_is_a_pure_function_of_time() -> None:
     sim = KDC101Simulator(clock)
     url = register(sim, "pure")
     try:
-        stage = KDC101(url, clock=clock)
+        stage = KDC101(url, clock=clock).open()
         stage.home()
         t0 = clock.now()
         stage.move_to(4e-3)
@@ -290,7 +290,7 @@ def test_served_simulator_drives_like_the_real_thing(served: str) -> None:
     with KDC101(served, clock=clock) as stage:
         if served.startswith("/dev/"):
             assert not stage.rts_supported  # a pty cannot toggle RTS: tolerated
-            assert stage.identify().serial_number == 27555555
+            assert stage.identify().serial == "27555555"
         stage.home()
         stage.move_to(1.5e-3)
         assert stage.position_counts() == round(1.5 * CPM)

@@ -91,7 +91,7 @@ def passes() -> Iterator[dict[tuple[float, int], Pass]]:
     sim = MCR501Simulator(clock, CFG)
     out: dict[tuple[float, int], Pass] = {}
     with SimulatorServer(sim) as server:
-        drv = MCR501.open(server.resource, clock, resource_manager=rm)
+        drv = MCR501(server.resource, clock, resource_manager=rm).open()
         try:
             drv.zero_gap()
             for speed in SPEEDS:
@@ -202,7 +202,7 @@ def test_torque_threshold_detects_contact_at_half_rpm(sign: int) -> None:
     rm = open_resource_manager("@py")
     with (
         SimulatorServer(sim) as server,
-        MCR501.open(server.resource, clock, resource_manager=rm) as drv,
+        MCR501(server.resource, clock, resource_manager=rm) as drv,
     ):
         arm = drv.config.arm
         drv.set_gap(cfg.touch_gap + 0.2e-3)  # apart: a full sweep finds nothing

@@ -82,7 +82,7 @@ def test_hold_relaxes_with_the_material_time_scale() -> None:
     cfg = SimConfig(start_referenced=True, start_angle=0.8, lower_angle=0.8, lift_speed=1e-3,
                     start_gap=3.2e-3)  # fmt: skip
     sim = MCR501Simulator(clock, cfg)
-    drv = MCR501(DirectLink(sim), clock)
+    drv = MCR501(DirectLink(sim), clock).open()
     drv.set_gap(cfg.touch_gap - 0.5e-3)
     drv.hold()
     f0 = drv.normal_force()
@@ -129,7 +129,7 @@ def _free_stream(seed: int, offset: float = 2e-6) -> tuple[np.ndarray, np.ndarra
     clock = VirtualClock()
     cfg = SimConfig(seed=seed, torque_offset=offset, torque_noise=1e-7, torque_resolution=1e-9)
     sim = MCR501Simulator(clock, cfg)
-    drv = MCR501(DirectLink(sim), clock)
+    drv = MCR501(DirectLink(sim), clock).open()
     drv.rotate(-1e-3)
     clock.sleep(1.0)
     drv.start_stream(0.01)

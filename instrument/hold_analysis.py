@@ -1,0 +1,118 @@
+"""A recorded ramp-and-hold analysed whole: its hold, G(t) over it, and its Prony fits.
+
+Arrays in, a :class:`HoldAnalysis` out; no files, no text beyond error messages. The report
+(:mod:`instrument.report_hold`) and ``gelrig analyze`` format it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from instrument.analysis import MIN_HOLD_SAMPLES, RelaxationFit, fit_hold, modulus_history
+from instrument.binning import bin_means
+from instrument.contact import FloatArray
+from instrument.errors import ConfigError, GelrigError
+from instrument.hold import HoldSpan, find_hold
+
+#: The ramp must reach this fraction of the planned hold overlap, else there is no hold.
+MIN_DEPTH_FRACTION = 0.9
+#: A hold recorded for less than this fraction of the planned duration is truncated.
+MIN_DURATION_FRACTION = 0.98
+
+
+class NoHold(GelrigError):
+    """The record holds no hold that can be fitted (too short, or never reached the depth)."""
+
+
+@dataclass(frozen=True)
+class HoldResiduals:
+    """G(t) over the hold as equal-count bin means, and each fit's residual there (Pa, s)."""
+
+    t: FloatArray
+    g: FloatArray
+    residuals: tuple[FloatArray, ...]
+
+
+@dataclass(frozen=True)
+class HoldAnalysis:
+    """A hold and its fits: ``t`` (s from the hold start) and ``g`` (Pa) are G(t) over it.
+
+    ``fits`` holds the fits that succeeded, in the order of the requested term counts;
+    ``fit_errors`` maps the term count of each one that failed to its reason.
+    """
+
+    span: HoldSpan
+    radius: float
+    depth: float
+    duration: float
+    planned: float
+    t: FloatArray
+    g: FloatArray
+    fits: tuple[RelaxationFit, ...]
+    fit_errors: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def samples(self) -> int:
+        """Samples of G(t) over the hold."""
+        return int(self.t.size)
+
+    @property
+    def truncated(self) -> bool:
+        """True when the hold was recorded for visibly less than planned."""
+        return math.isfinite(self.planned) and self.duration < MIN_DURATION_FRACTION * self.planned
+
+    def residuals(self, bins: int) -> HoldResiduals:
+        """G(t) in ``bins`` equal-count bin means with every fit's residual at them."""
+        tb, gb = bin_means(self.t, self.g, bins)
+        return HoldResiduals(tb, gb, tuple(gb - fit.model(tb) for fit in self.fits))
+
+
+def analyse_hold(
+    t: ArrayLike,
+    force: ArrayLike,
+    delta: ArrayLike,
+    radius: float,
+    depth: float,
+    planned: float = math.nan,
+    terms: Sequence[int] = (1, 2),
+    nu: float = 0.5,
+) -> HoldAnalysis:
+    """Find the hold of a ramp-and-hold step, back-calculate G(t) over it and fit it with each
+    number of ``terms``; ``depth`` (m) is the hold overlap, ``planned`` (s) the hold time.
+
+    Samples where the force or the overlap is not finite are left out. Raises :class:`NoHold`
+    when the record is too short or the ramp never came within 10 % of ``depth``.
+    """
+    t_all = np.asarray(t, dtype=float)
+    f_all = np.asarray(force, dtype=float)
+    d_all = np.asarray(delta, dtype=float)
+    ok = np.isfinite(d_all) & np.isfinite(f_all)
+    t_ok, f_ok, d_ok = t_all[ok], f_all[ok], d_all[ok]
+    if t_ok.size < MIN_HOLD_SAMPLES:
+        raise NoHold("no hold data to fit")
+    span = find_hold(delta=d_ok)
+    if span.samples < MIN_HOLD_SAMPLES or span.top < MIN_DEPTH_FRACTION * depth:
+        raise NoHold(f"the ramp never reached the hold depth {depth * 1e3:.3f} mm "
+                     f"(deepest {span.top * 1e3:.3f} mm)")
+    # The retract after the hold is not part of it.
+    t_ok, f_ok, d_ok = t_ok[: span.end], f_ok[: span.end], d_ok[: span.end]
+    fits: list[RelaxationFit] = []
+    errors: dict[int, str] = {}
+    for n in terms:
+        try:
+            fits.append(fit_hold(t_ok, f_ok, radius, depth, nu, terms=n, delta=d_ok))
+        except ConfigError as exc:
+            errors[n] = str(exc)
+    t0 = float(t_ok[span.start])
+    hold = t_ok >= t0
+    # Without a fit the depth may be what failed (G(t) needs it > 0): no G(t) then.
+    g = modulus_history(f_ok[hold], depth, radius, nu) if fits else np.full(hold.sum(), math.nan)
+    return HoldAnalysis(
+        span=span, radius=radius, depth=depth, duration=float(t_ok[-1] - t0), planned=planned,
+        t=t_ok[hold] - t0, g=g, fits=tuple(fits), fit_errors=errors,
+    )

@@ -1,0 +1,109 @@
+"""A ramp-and-hold step analysed whole, on modelled records with a known material."""
+
+import math
+
+import numpy as np
+import pytest
+
+from instrument import paper
+from instrument.compression import ramp_hold
+from instrument.contact import hertz_prefactor
+from instrument.hold_analysis import NoHold, analyse_hold
+
+R, D, V = paper.R_COMPRESSION, paper.DEPTH_HOLD, paper.RAMP_SPEED
+HOLD = 600.0
+NOISE = 2e-4  # N
+DT = 0.05
+
+
+@pytest.fixture(scope="module")
+def record():
+    """Ramp, 600 s hold and a 10 s retract, with noise (the hold step's columns)."""
+    rec = ramp_hold(R, D, V, HOLD, paper.PLATES, dt=DT)
+    back = np.linspace(1.0, 0.0, 201)[1:]
+    t = np.concatenate((rec.t, rec.t[-1] + DT * np.arange(1, back.size + 1)))
+    delta = np.concatenate((rec.delta, rec.delta[-1] * back))
+    force = np.concatenate((rec.force, rec.force[-1] * back**1.5))
+    force = force + np.random.default_rng(5).normal(0.0, NOISE, force.size)
+    return rec, t, force, delta
+
+
+@pytest.fixture(scope="module")
+def analysed(record):
+    _, t, force, delta = record
+    return analyse_hold(t, force, delta, R, D, planned=HOLD)
+
+
+def test_the_hold_is_found_and_the_retract_left_out(record, analysed):
+    rec, t, _, _ = record
+    assert t[analysed.span.start] == pytest.approx(rec.t_hold, abs=DT)
+    assert analysed.span.end == rec.t.size
+    assert analysed.duration == pytest.approx(HOLD, abs=DT)
+    assert analysed.samples == analysed.span.samples == analysed.g.size == analysed.t.size
+    assert analysed.t[0] == 0.0
+    assert not analysed.truncated
+
+
+def test_modulus_and_fits_recover_the_material(record, analysed):
+    rec = record[0]
+    g_e, (term,) = paper.PLATES.g_e, paper.PLATES.relax
+    one, two = analysed.fits
+    assert len(one.relax) == 1 and len(two.relax) == 2
+    assert one.g_e == pytest.approx(g_e, rel=0.01)
+    assert one.relax[0].tau == pytest.approx(term.tau, rel=0.1)
+    # G(t) is the noiseless modelled force over K delta^1.5, to within the noise
+    truth = rec.force[-analysed.samples:] / (hertz_prefactor(R) * D**1.5)
+    assert float(np.mean(analysed.g - truth)) == pytest.approx(0.0, abs=1.0)
+    assert analysed.fit_errors == {}
+
+
+def test_residuals_are_the_bin_means_less_each_model(analysed):
+    res = analysed.residuals(100)
+    assert res.t.size == res.g.size == 100 and len(res.residuals) == 2
+    one = analysed.fits[0]
+    assert res.residuals[0] == pytest.approx(res.g - one.model(res.t))
+    # the fitted model leaves only the noise of each bin mean (in Pa)
+    noise_g = NOISE / (hertz_prefactor(R) * D**1.5) / math.sqrt(analysed.samples / 100)
+    assert float(np.std(res.residuals[0])) == pytest.approx(noise_g, rel=0.3)
+
+
+def test_a_short_hold_is_flagged_truncated(record):
+    _, t, force, delta = record
+    assert analyse_hold(t, force, delta, R, D, planned=2 * HOLD).truncated
+    assert not analyse_hold(t, force, delta, R, D).truncated  # nothing planned
+
+
+def test_non_finite_samples_are_left_out(record, analysed):
+    _, t, force, delta = record
+    force, delta = force.copy(), delta.copy()
+    force[1000:1010] = np.nan
+    delta[2000] = np.inf
+    again = analyse_hold(t, force, delta, R, D, terms=(1,))
+    assert again.samples == analysed.samples - 11
+    assert again.fits[0].g_e == pytest.approx(analysed.fits[0].g_e, rel=1e-3)
+
+
+def test_no_hold_when_the_ramp_stops_short_or_there_is_no_data(record):
+    _, t, force, delta = record
+    with pytest.raises(NoHold, match="never reached the hold depth"):
+        analyse_hold(t, force, delta, R, 2 * D)
+    with pytest.raises(NoHold, match="no hold data"):
+        analyse_hold(t[:10], force[:10], delta[:10], R, D)
+
+
+def test_failed_fits_are_named_not_raised(record):
+    _, t, force, delta = record
+    out = analyse_hold(t, force, delta, R, D, terms=(3,))
+    assert out.fits == () and set(out.fit_errors) == {3}
+    assert "terms" in out.fit_errors[3]
+    assert np.all(np.isnan(out.g))
+
+
+def test_flat_force_fits_a_flat_modulus():
+    t = np.arange(0.0, 200.0, 0.1)
+    delta = np.minimum(t * 1e-5, 2e-4)
+    force = 5000.0 * hertz_prefactor(R) * delta**1.5  # Hertz, no relaxation
+    out = analyse_hold(t, force, delta, R, 2e-4, terms=(1,))
+    fit = out.fits[0]
+    assert fit.g_e + fit.relax[0].g == pytest.approx(5000.0, rel=1e-3)
+    assert math.isfinite(fit.rmse)
