@@ -56,8 +56,10 @@ class SimConfig:
     substep_travel: float = 1e-6
     #: ... and at most this long (s) per step.
     max_substep: float = 1.0
-    #: Points kept for the stream before the oldest are dropped.
-    stream_buffer: int = 1_000_000
+    #: Points the stream holds; beyond it the oldest are dropped and the overflow flag (0x20)
+    #: latches until ``:RUN`` or ``:END`` (UNVERIFIED; docs/decisions/0110): 4.1 s at the
+    #: fastest interval (1 ms), 410 s at the ladder's default 0.1 s.
+    stream_buffer: int = 4096
     identity: tuple[str, str, str] = field(default=("MCR501", "SN80000000", "03.40"))
 
     def __post_init__(self) -> None:

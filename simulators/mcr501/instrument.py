@@ -206,7 +206,6 @@ class MCR501Simulator:
         if not 1e-3 <= interval <= 3600.0:
             raise RequestError(13, f"interval {interval:g} s outside [0.001, 3600]")
         self.cell.start_stream(now, interval)
-        self.cell.overflowed = False
         return self._ok(command)
 
     def _stop_stream(self, command: Command, values: Values, now: float) -> list[str]:

@@ -107,11 +107,14 @@ class ShearCell:
         self.advance(t)
         self._stream = (t, interval, 1)
         self.samples.clear()
+        self.overflowed = False
 
     def stop_stream(self, t: float) -> None:
+        """Stop sampling at ``t``; unread samples and the overflow flag are cleared."""
         self.advance(t)
         self._stream = None
         self.samples.clear()
+        self.overflowed = False
 
     @property
     def streaming(self) -> bool:

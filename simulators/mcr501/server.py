@@ -1,8 +1,11 @@
-"""TCP server for the simulated MCR 501: CR LF terminated lines, one thread per connection.
+"""TCP server for the simulated MCR 501: one client at a time, bounded lines, CR LF replies.
 
-Reach it with pyvisa as ``TCPIP0::127.0.0.1::PORT::SOCKET`` (read and write termination
-CR LF) or with a plain socket. In tests it runs in a thread of the test process and shares the
-test's VirtualClock with the driver.
+Reach it with pyvisa as ``TCPIP0::127.0.0.1::PORT::SOCKET`` (read termination CR LF; requests
+may end in CR, LF or CR LF) or with a plain socket. Like the instrument's RS-232 port it serves
+one client: a second connection gets one ``#ERR[20;...]`` line and is closed, and the first
+keeps control. A request longer than :data:`MAX_LINE` bytes is answered with one
+``#ERR[11;line too long ...]`` and dropped up to its end (docs/decisions/0110). In tests it
+runs in a thread of the test process and shares the test's VirtualClock with the driver.
 """
 
 from __future__ import annotations
@@ -11,47 +14,79 @@ import contextlib
 import socket
 import socketserver
 import threading
+import time
 from typing import Any
 
 from drivers.mcr501.codec import error_line
 from drivers.mcr501.commands import TERMINATION
 from simulators.mcr501.instrument import MCR501Simulator
+from simulators.mcr501.lines import TOO_LONG, LineSplitter
 
-#: Longest request line accepted (bytes); longer input is answered with an error and dropped.
-MAX_LINE = 1024
+#: Longest request line accepted (bytes, without its end); ten times the longest table request.
+MAX_LINE = 256
+#: ``#ERR`` code for a connection refused because another client holds the instrument.
+BUSY = 20
+#: How long a new connection waits for the previous client to go (s): a client that closes and
+#: at once reopens must not be refused because the server has not yet seen the close.
+HANDOVER = 0.5
+#: How long a refused client's late bytes are drained before its socket is closed (s), so that
+#: the close does not reset the connection before the client has read the error line.
+_LINGER = 0.5
+_RECV = 4096
 
 
-class _Handler(socketserver.StreamRequestHandler):
+class _Handler(socketserver.BaseRequestHandler):
     server: _Server
+    request: socket.socket
 
     def handle(self) -> None:
-        self.server.track(self.connection)
+        conn = self.request
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if not self.server.claim(conn, HANDOVER):
+            self._refuse()
+            return
         try:
-            while True:
-                raw = self.rfile.readline(MAX_LINE + 1)
-                if not raw:
-                    return
-                if not raw.endswith(b"\n") and len(raw) > MAX_LINE:
-                    self._send([error_line(11, "line too long")])
-                    self.rfile.readline()  # drop the rest of that line
+            self._serve()
+        except OSError:
+            return
+        finally:
+            self.server.release(conn)
+
+    def _serve(self) -> None:
+        splitter = LineSplitter(MAX_LINE)
+        simulator = self.server.simulator
+        while True:
+            chunk = self.request.recv(_RECV)
+            if not chunk:
+                return
+            replies: list[str] = []
+            for raw in splitter.feed(chunk):
+                if raw is TOO_LONG:
+                    replies.append(error_line(11, f"line too long, at most {MAX_LINE} bytes"))
                     continue
                 try:
                     line = raw.decode("ascii")
                 except UnicodeDecodeError:
-                    self._send([error_line(10, "non-ASCII bytes")])
+                    replies.append(error_line(10, "non-ASCII bytes"))
                     continue
-                if not line.strip():
-                    continue
-                self._send(self.server.simulator.handle(line))
-        except OSError:
-            return
-        finally:
-            self.server.untrack(self.connection)
+                if line.strip():
+                    replies.extend(simulator.handle(line))
+            self._send(replies)
+
+    def _refuse(self) -> None:
+        conn = self.request
+        with contextlib.suppress(OSError):
+            self._send([error_line(BUSY, "instrument busy, another client is connected")])
+            conn.shutdown(socket.SHUT_WR)
+            deadline = time.monotonic() + _LINGER
+            while (left := deadline - time.monotonic()) > 0:
+                conn.settimeout(left)
+                if not conn.recv(_RECV):
+                    break
 
     def _send(self, lines: list[str]) -> None:
         if lines:
-            self.wfile.write("".join(f"{ln}{TERMINATION}" for ln in lines).encode("ascii"))
-            self.wfile.flush()
+            self.request.sendall("".join(f"{ln}{TERMINATION}" for ln in lines).encode("ascii"))
 
 
 class _Server(socketserver.ThreadingTCPServer):
@@ -61,21 +96,30 @@ class _Server(socketserver.ThreadingTCPServer):
 
     def __init__(self, address: tuple[str, int], simulator: MCR501Simulator):
         self.simulator = simulator
+        self._owner: socket.socket | None = None
         self._connections: set[socket.socket] = set()
-        self._conn_lock = threading.Lock()
+        self._cond = threading.Condition()
         super().__init__(address, _Handler)
 
-    def track(self, conn: socket.socket) -> None:
-        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        with self._conn_lock:
+    def claim(self, conn: socket.socket, wait: float) -> bool:
+        """Make ``conn`` the one client if the instrument is free within ``wait`` s."""
+        with self._cond:
             self._connections.add(conn)
+            if not self._cond.wait_for(lambda: self._owner is None, timeout=wait):
+                self._connections.discard(conn)
+                return False
+            self._owner = conn
+            return True
 
-    def untrack(self, conn: socket.socket) -> None:
-        with self._conn_lock:
+    def release(self, conn: socket.socket) -> None:
+        with self._cond:
             self._connections.discard(conn)
+            if self._owner is conn:
+                self._owner = None
+                self._cond.notify_all()
 
     def drop_all(self) -> int:
-        with self._conn_lock:
+        with self._cond:
             conns = list(self._connections)
         for conn in conns:
             with contextlib.suppress(OSError):

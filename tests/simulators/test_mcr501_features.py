@@ -18,12 +18,15 @@ from numpy.typing import NDArray
 
 from drivers.mcr501 import MCR501, open_resource_manager
 from instrument.clock import VirtualClock
+from instrument.rheometer import StreamPoint
 from instrument.sliding import SlidingGeometry, speed_from_rpm
 from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 
 SPEEDS = (2.38e-5, 4.75e-5, 1.19e-4, 2.37e-4)
 DELTA_MAX = 0.78e-3
 MARGIN = 1.0e-3
+#: Virtual seconds between stream reads: 600 points at 10 Hz, well inside the 4096-point buffer.
+READ_PERIOD = 60.0
 REST = 12_000.0  # s between passes: six relaxation times, so passes do not disturb each other
 CFG = SimConfig(start_referenced=False, lower_angle=1.3, seed=11)
 GEO = SlidingGeometry(CFG.r1, CFG.r2, DELTA_MAX)
@@ -67,9 +70,14 @@ def record_pass(drv: MCR501, clock: VirtualClock, speed: float, sign: int) -> Pa
     drv.set_gap(CFG.touch_gap - DELTA_MAX)
     drv.start_stream(0.1)  # 10 Hz
     drv.rotate(sign * speed)
-    clock.sleep(2 * (GEO.psi0 + MARGIN) / speed)
+    end = clock.now() + 2 * (GEO.psi0 + MARGIN) / speed
+    points: list[StreamPoint] = []
+    while clock.now() < end:  # read before the instrument's stream buffer fills
+        clock.sleep(min(READ_PERIOD, end - clock.now()))
+        points += drv.read_stream()
     drv.stop()
-    points = drv.read_stream()
+    points += drv.read_stream()
+    assert not drv.status().overflow
     drv.stop_stream()
     theta = np.array([p.theta for p in points])
     torque = np.array([p.torque for p in points])

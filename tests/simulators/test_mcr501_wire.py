@@ -95,8 +95,10 @@ def test_unknown_and_malformed_requests(served: tuple[VirtualClock, MCR501Simula
     assert wire.ask(b":ROT[LEFT;1]\r\n") == b"#ERR[11;bad argument for :ROT]"
     assert wire.ask(b":GAP[1.0000]\r\n").startswith(b"#ERR[12;gap not referenced")
     assert wire.ask(b"#VERS[\xff]\r\n") == b"#ERR[10;non-ASCII bytes]"
-    assert wire.ask(b"#VERS[?]" + b"x" * 2000 + b"\r\n") == b"#ERR[11;line too long]"
+    too_long = b"#ERR[11;line too long, at most 256 bytes]"
+    assert wire.ask(b"#VERS[?]" + b"x" * 2000 + b"\r\n") == too_long
     assert wire.ask(b"#VERS[?]\n").startswith(b"#VERS[")  # a bare LF is accepted too
+    assert wire.ask(b"#VERS[?]\r").startswith(b"#VERS[")  # and a bare CR
 
 
 def test_stream_records_on_the_wire(served: tuple[VirtualClock, MCR501Simulator, Wire]) -> None:
@@ -134,15 +136,19 @@ def test_status_flags_on_the_wire(served: tuple[VirtualClock, MCR501Simulator, W
     assert wire.ask(b":STAT[?]\r\n") == b":STAT[HOLD;0002]"
 
 
-def test_two_clients_share_one_instrument(
+def test_a_second_client_gets_one_error_line_and_is_closed(
     served: tuple[VirtualClock, MCR501Simulator, Wire],
 ) -> None:
     _, sim, wire = served
     port = int(wire.sock.getpeername()[1])
     other = Wire(port)
     try:
-        assert other.ask(b":GAPZ[]\r\n") == b":GAPZ[OK]"
-        assert wire.ask(b":STAT[?]\r\n") == b":STAT[IDLE;0002]"
-        assert sim.referenced
+        other.send(b":GAPZ[]\r\n")
+        assert other.line() == b"#ERR[20;instrument busy, another client is connected]"
+        with pytest.raises(ConnectionError):  # closed after that one line
+            other.line()
+        assert other.buf == b""
+        assert wire.ask(b":STAT[?]\r\n") == b":STAT[IDLE;0000]"
+        assert not sim.referenced
     finally:
         other.sock.close()

@@ -1,0 +1,218 @@
+"""The simulated MCR 501 as a scientist's own pyvisa script meets it (issue 13).
+
+The client here is plain pyvisa + pyvisa-py with literal request strings, not gelrig's driver
+or codec: line ends, one client at a time, the bounded stream buffer and the bounded input line
+(docs/decisions/0110). Every read has a timeout, so a missing reply fails instead of hanging.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import pytest
+import pyvisa
+from pyvisa.errors import VisaIOError
+
+from instrument.clock import VirtualClock
+from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+
+VERS = "#VERS[MCR501;SN80000000;03.40]"
+OVERFLOW = 0x20
+BUFFER = 4096  # points, docs/decisions/0110
+
+
+@dataclass
+class Bench:
+    clock: VirtualClock
+    sim: MCR501Simulator
+    server: SimulatorServer
+    rm: Any
+
+    def open(self, write_termination: str = "\r\n", timeout_ms: int = 2000) -> Any:
+        """A pyvisa session as a script would open it."""
+        return self.rm.open_resource(
+            self.server.resource,
+            read_termination="\r\n",
+            write_termination=write_termination,
+            timeout=timeout_ms,
+        )
+
+
+@pytest.fixture(scope="module")
+def rm() -> Iterator[Any]:
+    manager = pyvisa.ResourceManager("@py")
+    yield manager
+    manager.close()
+
+
+@pytest.fixture
+def bench(rm: Any) -> Iterator[Bench]:
+    clock = VirtualClock()
+    sim = MCR501Simulator(clock, SimConfig())
+    with SimulatorServer(sim) as server:
+        yield Bench(clock, sim, server, rm)
+
+
+@pytest.fixture
+def client(bench: Bench) -> Iterator[Any]:
+    res = bench.open()
+    yield res
+    res.close()
+
+
+def _nothing_more(res: Any) -> bool:
+    """True if no further line arrives within 0.2 s."""
+    timeout = res.timeout
+    res.timeout = 200
+    try:
+        res.read()
+    except VisaIOError:
+        return True
+    finally:
+        res.timeout = timeout
+    return False
+
+
+# -- line ends ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("end", ["\r\n", "\r", "\n"], ids=["CRLF", "CR", "LF"])
+def test_each_line_end_is_answered_with_cr_lf(bench: Bench, end: str) -> None:
+    res = bench.open(write_termination=end)
+    try:
+        for request, reply in (
+            ("#VERS[?]", VERS.encode()),
+            (":STAT[?]", b":STAT[IDLE;0000]"),
+            (":ANG[?]", b":ANG[0.0000000]"),
+        ):
+            res.write(request)
+            assert res.read_raw() == reply + b"\r\n"
+        assert _nothing_more(res)  # the empty line inside CR LF is not answered
+    finally:
+        res.close()
+
+
+def test_mixed_line_ends_in_one_write(client: Any) -> None:
+    client.write_raw(b":STAT[?]\r#VERS[?]\n:ANG[?]\r\n\r\n\n")
+    assert [client.read() for _ in range(3)] == [":STAT[IDLE;0000]", VERS, ":ANG[0.0000000]"]
+    assert _nothing_more(client)
+
+
+# -- one client at a time -------------------------------------------------------------------
+
+
+def test_a_second_client_is_refused_while_the_first_keeps_control(bench: Bench) -> None:
+    first = bench.open()
+    try:
+        assert first.query(":ROT[CW;1.000000e+00]") == ":ROT[OK]"
+        second = bench.open(timeout_ms=2000)
+        try:
+            assert re.fullmatch(r"#ERR\[20;[^\[\];]*busy[^\[\];]*\]", second.read())
+            with contextlib.suppress(VisaIOError):
+                second.write(":STOP[]")
+            assert _nothing_more(second)  # closed: the stop got no answer ...
+        finally:
+            second.close()
+        assert ":STOP[]" not in bench.sim.log  # ... and never reached the instrument
+        assert first.query(":STAT[?]").startswith(":STAT[ROT;")
+        assert bench.sim.cell.spin.target > 0
+    finally:
+        first.close()
+
+
+def test_control_passes_to_the_next_client_once_the_first_closes(bench: Bench) -> None:
+    first = bench.open()
+    assert first.query(":GAPZ[]") == ":GAPZ[OK]"
+    first.close()
+    second = bench.open()
+    try:
+        assert second.query("#VERS[?]") == VERS
+        assert second.query(":STAT[?]") == ":STAT[IDLE;0002]"  # same instrument, referenced
+    finally:
+        second.close()
+
+
+# -- bounded stream buffer ------------------------------------------------------------------
+
+
+def _status_flags(res: Any) -> int:
+    m = re.fullmatch(r":STAT\[(IDLE|ROT|HOLD);([0-9A-F]{4})\]", res.query(":STAT[?]"))
+    assert m is not None
+    return int(m.group(2), 16)
+
+
+def _drain(res: Any) -> list[float]:
+    """The times of every point the stream holds, read as ``#DATA[?]`` batches."""
+    times: list[float] = []
+    for _ in range(1000):  # bounded: 1000 batches of up to 100 points
+        m = re.fullmatch(r"#DATA\[(\d+);(\d+)\]", res.query("#DATA[?]"))
+        assert m is not None
+        for _ in range(int(m.group(1))):
+            rec = re.fullmatch(r":MEAS\[([-\d.]+);[^\]]*\]", res.read())
+            assert rec is not None
+            times.append(float(rec.group(1)))
+        if int(m.group(2)) == 0:
+            return times
+    raise AssertionError("stream never drained")
+
+
+def test_an_unread_stream_overflows_and_keeps_the_newest_points(
+    bench: Bench, client: Any
+) -> None:
+    assert bench.sim.config.stream_buffer == BUFFER
+    assert client.query(":RUN[0.001]") == ":RUN[OK]"
+    bench.clock.sleep(6.0)  # 6000 points at the fastest interval
+    assert _status_flags(client) & OVERFLOW
+    times = _drain(client)
+    assert len(times) == BUFFER
+    assert times[0] == pytest.approx(6.0 - (BUFFER - 1) * 1e-3)  # the oldest were dropped
+    assert times[-1] == pytest.approx(6.0)
+    assert _status_flags(client) & OVERFLOW  # latched: draining and reading do not clear it
+    assert client.query(":RUN[0.001]") == ":RUN[OK]"
+    assert not _status_flags(client) & OVERFLOW  # a restart does
+
+
+def test_stopping_the_stream_clears_the_overflow_flag(bench: Bench, client: Any) -> None:
+    assert client.query(":RUN[0.001]") == ":RUN[OK]"
+    bench.clock.sleep(5.0)
+    assert _status_flags(client) & OVERFLOW
+    assert client.query(":END[]") == ":END[OK]"
+    assert not _status_flags(client) & OVERFLOW
+    assert client.query("#DATA[?]") == "#DATA[0;0]"
+
+
+def test_a_stream_read_in_time_never_overflows(bench: Bench, client: Any) -> None:
+    assert client.query(":RUN[0.001]") == ":RUN[OK]"
+    total = 0
+    for _ in range(6):
+        bench.clock.sleep(1.0)
+        total += len(_drain(client))
+        assert not _status_flags(client) & OVERFLOW
+    assert total == 6000
+
+
+# -- bounded input line ---------------------------------------------------------------------
+
+
+def test_an_over_long_unterminated_line_is_dropped_with_one_error(
+    bench: Bench, client: Any
+) -> None:
+    client.write_raw(b"#VERS[?]" + b"x" * 100_000)  # no line end
+    assert client.read() == "#ERR[11;line too long, at most 256 bytes]"
+    handled = bench.sim.requests
+    client.write_raw(b"y" * 1000 + b"\r\n")  # the rest of that line, then its end
+    assert client.query("#VERS[?]") == VERS  # no second error in between
+    assert bench.sim.requests == handled + 1  # the tail never reached the instrument
+    assert _nothing_more(client)
+
+
+def test_the_line_bound_is_256_bytes(client: Any) -> None:
+    longest = ":RUN[" + "0" * 249 + "1]"  # a valid request of exactly 256 bytes
+    assert len(longest) == 256
+    assert client.query(longest) == ":RUN[OK]"
+    assert client.query(":RUN[0" + longest[5:]) == "#ERR[11;line too long, at most 256 bytes]"
+    assert client.query(":STAT[?]").startswith(":STAT[IDLE;")
