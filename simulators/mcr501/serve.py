@@ -1,7 +1,8 @@
 """Serve a simulated MCR 501 rheometer (two hydrogel spheres on the shear arm) over TCP.
 
 ``gelrig sim serve mcr501 --port 5025 --clock paced:10`` prints where it listens; connect with
-pyvisa as ``TCPIP0::HOST::PORT::SOCKET`` (read and write termination CR LF). The clock is real
+pyvisa as ``TCPIP0::HOST::PORT::SOCKET`` (read termination CR LF; requests may end in CR, LF or
+CR LF; one client at a time, docs/decisions/0110). The clock is real
 or paced (virtual time at K x real time); a purely virtual clock needs a client in the same
 process, so it is not offered here.
 """

@@ -102,6 +102,39 @@ def test_mixed_line_ends_in_one_write(client: Any) -> None:
     assert _nothing_more(client)
 
 
+@pytest.mark.parametrize(
+    ("request_", "reply"),
+    [
+        (":FOO[]", "#ERR[10;unknown command :FOO]"),
+        ("VERS?", "#ERR[10;unknown command]"),
+        (":ROT[LEFT;1]", "#ERR[11;bad argument for :ROT]"),
+        (":GAP[1.0]", "#ERR[12;gap not referenced, send :GAPZ() first]"),
+        (":ROT[CW;1e3]", "#ERR[13;speed 1000 rpm outside (0, 100)]"),
+        (":RUN[0]", "#ERR[13;interval 0 s outside (0.001, 3600)]"),
+    ],
+)
+def test_bad_requests_get_named_errors(client: Any, request_: str, reply: str) -> None:
+    assert client.query(request_) == reply
+    assert client.query("#VERS[?]") == VERS  # and the session carries on
+
+
+def test_non_ascii_bytes_get_a_named_error(client: Any) -> None:
+    client.write_raw(b"#VERS[\xff]\r\n")
+    assert client.read() == "#ERR[10;non-ASCII bytes]"
+
+
+def test_other_read_terminations_see_the_cr_lf(bench: Bench) -> None:
+    res = bench.open()
+    try:
+        res.read_termination = "\n"
+        assert res.query("#VERS[?]") == VERS + "\r"
+        res.read_termination = "\r"
+        assert res.query("#VERS[?]") == VERS
+        assert res.query(":STAT[?]") == "\n:STAT[IDLE;0000]"
+    finally:
+        res.close()
+
+
 # -- one client at a time -------------------------------------------------------------------
 
 
