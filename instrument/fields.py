@@ -297,7 +297,11 @@ class Config:
         try:
             return cls(**values)
         except ConfigError as exc:  # a check across fields, made without the file's name
-            raise rewhere(exc, source) from None
+            field = exc.field
+            own = f"[{cls.section}] "
+            if where.section != cls.section and field.startswith(own):
+                field = where.name(field.removeprefix(own))
+            raise ConfigError(field, exc.value, exc.allowed, exc.source or source) from None
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], source: str | None = None) -> Self:
@@ -332,13 +336,6 @@ def read_table(
         else:
             out[name] = spec.initial()
     return out
-
-
-def rewhere(exc: ConfigError, source: str | None) -> ConfigError:
-    """``exc`` with ``source`` filled in where it had none (configs built in code)."""
-    if exc.source is not None or source is None:
-        return exc
-    return ConfigError(exc.field, exc.value, exc.allowed, source)
 
 
 def parse_table(

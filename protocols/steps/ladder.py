@@ -10,7 +10,7 @@ from typing import ClassVar
 
 from instrument import paper
 from instrument.errors import GelrigError
-from instrument.fields import Field, FieldList, param
+from instrument.fields import Field, FieldList, Where, param
 from instrument.sliding import rpm_from_speed
 from protocols.context import StepContext
 from protocols.rig import ShearLimits, ShearRig
@@ -25,6 +25,10 @@ from protocols.steps.base import (
     given,
 )
 from protocols.steps.shear_search import ShearSearchResult
+
+#: Most stream points one read may have to collect: half the MCR 501's stream buffer as the
+#: simulator models it (4096 points, UNVERIFIED: docs/decisions/0110), so points are never lost.
+STREAM_POINTS_PER_READ = 2048
 
 _SPEED = Field("speeds", "m/s", None, 0.0, 0.01, lo_open=True, display="mm/s")
 
@@ -56,6 +60,15 @@ class LadderParams(StepParams):
     centre_angle: float | None = param(Field(
         "centre_angle", "rad", None, -2 * math.pi, 2 * math.pi, optional=True,
         help="arm angle over the lower sphere; default: from the contact search"))
+
+    def validate(self, where: Where) -> None:
+        points = self.read_period / self.interval
+        if points > STREAM_POINTS_PER_READ:
+            raise where.error("read_period", self.read_period,
+                              f"at most {STREAM_POINTS_PER_READ} stream intervals "
+                              f"({STREAM_POINTS_PER_READ * self.interval:g} s at interval "
+                              f"{self.interval:g} s), so the instrument's stream buffer never "
+                              "overflows between reads")
 
     @property
     def levels(self) -> list[float]:

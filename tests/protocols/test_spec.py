@@ -77,3 +77,12 @@ def test_file_errors(tmp_path):
         load_protocol(bad)
     with pytest.raises(ConfigError, match="cannot be read"):
         load_protocol(tmp_path / "none.toml")
+
+
+def test_ladder_read_period_keeps_the_stream_buffer_from_overflowing():
+    table = {"protocol": {"name": "p", "rig": "shear"},
+             "step": [{"kind": "speed_ladder", "interval": "0.001 s", "read_period": "10 s"}]}
+    with pytest.raises(ConfigError, match=r"\[step\[0\]\] read_period = 10.0: at most 2048"):
+        parse_protocol(table)
+    table["step"][0]["read_period"] = "2 s"
+    assert parse_protocol(table).steps[0].params.read_period == 2.0
