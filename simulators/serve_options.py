@@ -21,7 +21,8 @@ USB6001_PORT = 31763
 KDC101_CLIENTS = (
     "Clients: pylablib KinesisMotor needs --tcp (connect to ('serial', 'socket://HOST:PORT'); "
     "on a pty its serial backend fails setting RTS, errno 25). thorlabs-apt-device's KDC101 "
-    "works on --pty (serial_port='/dev/pts/N') or on --tcp through a pyserial URL. gelrig's "
+    "needs --pty (serial_port='/dev/pts/N'; it opens serial.Serial(port), which takes no "
+    "socket:// URL). gelrig's "
     "driver works on all (socket://HOST:PORT, the pty path, or kdc101sim://NAME in process). "
     "One client at a time: a second TCP client is closed at once, as a busy serial port."
 )
@@ -33,8 +34,7 @@ def kdc101_arguments(parser: argparse.ArgumentParser) -> None:
         parser.epilog = KDC101_CLIENTS
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--tcp", metavar="HOST:PORT",
-                       help="listen on TCP (port 0: any free); for pylablib, thorlabs-apt-device "
-                            "(pyserial URL) and gelrig")
+                       help="listen on TCP (port 0: any free); for pylablib and gelrig")
     where.add_argument("--pty", action="store_true",
                        help="create a pseudo-terminal; for thorlabs-apt-device and gelrig "
                             "(not pylablib: RTS fails on a pty)")
