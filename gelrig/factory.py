@@ -81,7 +81,7 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
     from drivers.kdc101 import KDC101
     from drivers.usb6001.sensor import Usb6001ForceSensor
     from instrument.errors import ConfigError
-    from simulators.kdc101 import KDC101Simulator, register, unregister
+    from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
     from simulators.usb6001.rig import PLATES, SIM_OFFSET, compression_daq
     from simulators.usb6001.server import start_server
 
@@ -91,7 +91,8 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
     identities: dict[str, object] = {}
     try:
         if stage_entry.simulated:
-            stage_sim = KDC101Simulator(clock)
+            # The simulated controller follows the rig's direction convention (ADR 0100).
+            stage_sim = KDC101Simulator(clock, SimConfig(direction=stage_entry.config.direction))
             name = f"gelrig-{id(stage_sim):x}"
             address = register(stage_sim, name)
             closers.append(lambda: unregister(name))

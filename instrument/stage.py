@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar, Protocol, runtime_checkable
 
-from instrument.fields import Config, Field, Where, param
+from instrument.fields import Choice, Config, Field, Where, param
 from instrument.identity import Identity
 
 
@@ -97,6 +97,13 @@ class Stage(Protocol):
         ...
 
 
+#: Direction conventions of an APT stage controller (ADR 0100): whether the protocol's
+#: "forward" code and bits mean larger position counts. A KDC101 with a Z8 actuator, as both
+#: public clients (pylablib, thorlabs-apt-device) encode it, is ``forward_is_negative``.
+FORWARD_IS_NEGATIVE = "forward_is_negative"
+FORWARD_IS_POSITIVE = "forward_is_positive"
+DIRECTIONS = (FORWARD_IS_NEGATIVE, FORWARD_IS_POSITIVE)
+
 # Z825B actuator facts (instruments.md); the accel cap is UNVERIFIED, so generous.
 _Z825B_MAX_VELOCITY_M_S = 2.6e-3
 _ACCEL_CAP_M_S2 = 10e-3
@@ -136,13 +143,15 @@ class StageConfig(Config):
                                          help="deadline of one request on the wire"))
     move_timeout_s: float = param(Field("move_timeout", "s", 60.0, 0.0, 3600.0, lo_open=True))
     poll_interval_s: float = param(Field("poll_interval", "s", 0.05, 0.0, 1.0, lo_open=True))
+    direction: str = param(Choice("direction", DIRECTIONS, FORWARD_IS_NEGATIVE,
+                                  help="what the APT 'forward' code means (ADR 0100)"))
 
     def validate(self, where: Where) -> None:
         if not self.min_position_m < self.max_position_m:
             raise where.error("min_position", self.min_position_m,
                               f"must be < max_position ({self.max_position_m:g} m)")
 
-    def to_mapping(self) -> dict[str, float]:
+    def to_mapping(self) -> dict[str, float | str]:
         """The inverse of ``from_mapping`` (SI numbers), for storing beside the data."""
         return self.to_table()
 

@@ -17,11 +17,27 @@ from typing import NamedTuple
 USB6001_PORT = 31763
 
 
+#: Which transport each public KDC101 client can use (shown by ``--help`` and in the README).
+KDC101_CLIENTS = (
+    "Clients: pylablib KinesisMotor needs --tcp (connect to ('serial', 'socket://HOST:PORT'); "
+    "on a pty its serial backend fails setting RTS, errno 25). thorlabs-apt-device's KDC101 "
+    "needs --pty (serial_port='/dev/pts/N'; it opens serial.Serial(port), which takes no "
+    "socket:// URL). gelrig's "
+    "driver works on all (socket://HOST:PORT, the pty path, or kdc101sim://NAME in process). "
+    "One client at a time: a second TCP client is closed at once, as a busy serial port."
+)
+
+
 def kdc101_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``gelrig sim serve kdc101``."""
+    if parser.epilog is None:
+        parser.epilog = KDC101_CLIENTS
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--tcp", metavar="HOST:PORT", help="listen on TCP (port 0: any free)")
-    where.add_argument("--pty", action="store_true", help="create a pseudo-terminal")
+    where.add_argument("--tcp", metavar="HOST:PORT",
+                       help="listen on TCP (port 0: any free); for pylablib and gelrig")
+    where.add_argument("--pty", action="store_true",
+                       help="create a pseudo-terminal; for thorlabs-apt-device and gelrig "
+                            "(not pylablib: RTS fails on a pty)")
     parser.add_argument("--clock", default="real", help="real or paced:K (default real)")
     parser.add_argument("--serial", type=int, default=27000001, help="serial number (27xxxxxx)")
     parser.add_argument("--counts-per-mm", type=float, default=34554.96,
@@ -30,6 +46,9 @@ def kdc101_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start-position", default="5 mm",
                         help="extension from the home switch at power-on")
     parser.add_argument("--home-offset", default="0.1 mm", help="home position past the switch")
+    parser.add_argument("--direction", default="forward_is_negative",
+                        choices=("forward_is_negative", "forward_is_positive"),
+                        help="what APT 'forward' means (default: a KDC101's, forward_is_negative)")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many real seconds (default: until interrupted)")
 

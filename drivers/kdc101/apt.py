@@ -8,6 +8,7 @@ is recognised and skipped; every failure it reports is an ``AptFramingError``.
 from __future__ import annotations
 
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -67,10 +68,15 @@ class MsgId(IntEnum):
 
 @dataclass(frozen=True)
 class Form:
-    """Shape of a message: header only (``data_len is None``) or a fixed-length payload."""
+    """Shape of a message: header only (``data_len is None``) or a fixed-length payload.
+
+    ``short_form``: the header-only form is valid too (MOVE_RELATIVE / MOVE_ABSOLUTE without
+    data use the stored move parameters, as the protocol document describes).
+    """
 
     data_len: int | None
     has_channel: bool = False
+    short_form: bool = False
 
 
 _H = Form(None)
@@ -109,8 +115,8 @@ FORMS: dict[int, Form] = {
     MsgId.MOT_GET_HOMEPARAMS: _d(14),
     MsgId.MOT_MOVE_HOME: _H,
     MsgId.MOT_MOVE_HOMED: _H,
-    MsgId.MOT_MOVE_RELATIVE: _d(6),
-    MsgId.MOT_MOVE_ABSOLUTE: _d(6),
+    MsgId.MOT_MOVE_RELATIVE: Form(6, True, short_form=True),
+    MsgId.MOT_MOVE_ABSOLUTE: Form(6, True, short_form=True),
     MsgId.MOT_MOVE_VELOCITY: _H,
     MsgId.MOT_MOVE_COMPLETED: _d(14),
     MsgId.MOT_MOVE_STOP: _H,
@@ -193,10 +199,11 @@ def _addresses_ok(dest: int, source: int) -> bool:
     return {dest, source} == {HOST, CONTROLLER}
 
 
-def _check_header(buf: bytes | bytearray, start: int) -> int | None:
+def _check_header(buf: bytes | bytearray, start: int, forms: Mapping[int, Form] = FORMS
+                  ) -> int | None:
     """Frame length if the 6 header bytes at ``start`` are plausible, else None."""
     msg_id, word, dest, source = HEADER_DATA.unpack_from(buf, start)
-    form = FORMS.get(msg_id)
+    form = forms.get(msg_id)
     if dest & DATA_FLAG:
         if not _addresses_ok(dest & 0x7F, source):
             return None
@@ -205,13 +212,14 @@ def _check_header(buf: bytes | bytearray, start: int) -> int | None:
         return 6 + word if form.data_len == word else None
     if not _addresses_ok(dest, source):
         return None
-    if form is not None and form.data_len is not None:
+    if form is not None and form.data_len is not None and not form.short_form:
         return None
     return 6
 
 
-def _channel_ok(msg_id: int, data: bytes | bytearray) -> bool:
-    form = FORMS.get(msg_id)
+def _channel_ok(msg_id: int, data: bytes | bytearray, forms: Mapping[int, Form] = FORMS
+                ) -> bool:
+    form = forms.get(msg_id)
     if form is None or not form.has_channel:
         return True
     return data[1] == 0 and 1 <= data[0] <= 16
@@ -223,9 +231,11 @@ class AptFramer:
     ``feed`` bytes, then call ``next_message`` until it returns None (need more bytes). When
     the stream holds garbage, ``next_message`` drops it up to the next plausible header and
     raises one AptFramingError saying how much it dropped; the next call carries on.
+    ``forms`` is the message table to check against (a simulator passes a larger one).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, forms: Mapping[int, Form] = FORMS) -> None:
+        self.forms = forms
         self._buf = bytearray()
         self.discarded = 0  # total bytes skipped as garbage
 
@@ -247,7 +257,7 @@ class AptFramer:
         buf = self._buf
         if len(buf) < 6:
             return None
-        length = _check_header(buf, 0)
+        length = _check_header(buf, 0, self.forms)
         if length is not None:
             if len(buf) < length:
                 return None
@@ -257,7 +267,7 @@ class AptFramer:
                 del buf[:6]
                 return msg
             data = bytes(buf[6:length])
-            if _channel_ok(msg_id, data):
+            if _channel_ok(msg_id, data, self.forms):
                 msg = Message(msg_id, 0, 0, data, buf[4] & 0x7F, buf[5])
                 del buf[:length]
                 return msg
@@ -274,6 +284,6 @@ class AptFramer:
         for i in range(1, len(buf)):
             if len(buf) - i < 6:
                 return i
-            if _check_header(buf, i) is not None:
+            if _check_header(buf, i, self.forms) is not None:
                 return i
         return len(buf)

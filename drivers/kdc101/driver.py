@@ -377,7 +377,7 @@ class KDC101:
         """Run at the set velocity until ``stop`` (the controller's soft limits still hold)."""
         if direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {direction}")
-        param = pl.DIRECTION_FORWARD if direction > 0 else pl.DIRECTION_REVERSE
+        param = pl.Directions.named(self.config.direction).code(direction)  # ADR 0100
         with self._guard():
             self._maybe_moving = True
             self._send(command(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param))
@@ -431,7 +431,7 @@ class KDC101:
         with self._guard():
             _, bits = pl.unpack_statusbits(self._data(self._req(MsgId.MOT_REQ_STATUSBITS,
                                                                 MsgId.MOT_GET_STATUSBITS)))
-            return pl.decode_status(bits)
+            return pl.decode_status(bits, self.config.direction)
 
     def is_moving(self) -> bool:
         return self.status().busy

@@ -1,8 +1,9 @@
 """Payload layouts of the APT messages the rig uses, and the status-bit convention.
 
 Each layout is a ``struct`` format plus a small dataclass; ``pack`` gives the payload bytes,
-``unpack`` reads them back (AptFramingError on a wrong length). Direction convention (ADR 0004,
-to confirm on the instrument): "forward" (1) and the 0x01/0x10 bits mean increasing counts.
+``unpack`` reads them back (AptFramingError on a wrong length). Which direction code and which
+status bits mean *larger position counts* is the rig's ``direction`` setting, decoded in one
+place, :class:`Directions` (ADR 0100; ADR 0004 keeps signed moves for everything else).
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from drivers.kdc101.apt import CHANNEL, AptFramingError
-from instrument.stage import StageStatus
+from instrument.stage import FORWARD_IS_NEGATIVE, FORWARD_IS_POSITIVE, StageStatus
 
-# Status bits (MOT_GET_STATUSBITS / DC status update).
-LIMIT_FORWARD = 0x00000001  # "CW" hard limit: the end of larger positions
-LIMIT_REVERSE = 0x00000002  # "CCW" hard limit: the home end
+# Status bits (MOT_GET_STATUSBITS / DC status update), named as in the protocol document.
+# Which end each direction pair refers to is decided by ``Directions``, nowhere else.
+LIMIT_FORWARD = 0x00000001  # "CW" hard limit
+LIMIT_REVERSE = 0x00000002  # "CCW" hard limit
 SOFT_LIMIT_FORWARD = 0x00000004
 SOFT_LIMIT_REVERSE = 0x00000008
 MOVING_FORWARD = 0x00000010
@@ -31,8 +33,8 @@ ERROR = 0x40000000
 ENABLED = 0x80000000
 BUSY = MOVING_FORWARD | MOVING_REVERSE | JOGGING_FORWARD | JOGGING_REVERSE | HOMING
 
-# MOT_MOVE_VELOCITY / MOT_MOVE_STOP / MOD_SET_CHANENABLESTATE parameter values.
-DIRECTION_FORWARD = 1  # increasing position
+# MOT_MOVE_VELOCITY / MOT_MOVE_JOG / MOT_MOVE_STOP / MOD_SET_CHANENABLESTATE parameter values.
+DIRECTION_FORWARD = 1  # the document's "forward"; see Directions for where it goes
 DIRECTION_REVERSE = 2
 STOP_IMMEDIATE = 1
 STOP_PROFILED = 2
@@ -40,8 +42,58 @@ CHAN_ENABLED = 1
 CHAN_DISABLED = 2
 
 
-def decode_status(bits: int) -> StageStatus:
-    """The rig's view of a KDC101 status word."""
+@dataclass(frozen=True)
+class Directions:
+    """The one table of what APT direction words mean on this controller (ADR 0100).
+
+    ``sign`` is +1 for larger position counts, -1 for smaller. With ``forward_is_positive``
+    False (a KDC101 as pylablib and thorlabs-apt-device encode it) direction code 1 and the
+    "forward" bits 0x01 / 0x04 / 0x10 / 0x40 belong to *smaller* counts.
+    """
+
+    forward_is_positive: bool
+
+    @classmethod
+    def named(cls, name: str) -> Directions:
+        """The convention of a ``StageConfig.direction`` / ``SimConfig.direction`` word."""
+        if name not in (FORWARD_IS_NEGATIVE, FORWARD_IS_POSITIVE):
+            raise ValueError(f"direction convention {name!r}: "
+                             f"{FORWARD_IS_NEGATIVE} or {FORWARD_IS_POSITIVE}")
+        return cls(name == FORWARD_IS_POSITIVE)
+
+    def _forward(self, sign: int) -> bool:
+        if sign not in (1, -1):
+            raise ValueError(f"direction sign must be +1 or -1, got {sign}")
+        return (sign > 0) == self.forward_is_positive
+
+    def code(self, sign: int) -> int:
+        """MOVE_VELOCITY / MOVE_JOG direction code for a move towards ``sign``."""
+        return DIRECTION_FORWARD if self._forward(sign) else DIRECTION_REVERSE
+
+    def sign(self, code: int) -> int:
+        """Where a direction code goes (+1 larger counts); ValueError for codes other than 1/2."""
+        if code not in (DIRECTION_FORWARD, DIRECTION_REVERSE):
+            raise ValueError(f"direction code {code} (1 or 2)")
+        forward = code == DIRECTION_FORWARD
+        return 1 if forward == self.forward_is_positive else -1
+
+    def moving_bit(self, sign: int) -> int:
+        return MOVING_FORWARD if self._forward(sign) else MOVING_REVERSE
+
+    def jogging_bit(self, sign: int) -> int:
+        return JOGGING_FORWARD if self._forward(sign) else JOGGING_REVERSE
+
+    def limit_bit(self, sign: int) -> int:
+        """Hard-limit bit of the end towards ``sign``."""
+        return LIMIT_FORWARD if self._forward(sign) else LIMIT_REVERSE
+
+    def soft_limit_bit(self, sign: int) -> int:
+        return SOFT_LIMIT_FORWARD if self._forward(sign) else SOFT_LIMIT_REVERSE
+
+
+def decode_status(bits: int, directions: Directions | str = FORWARD_IS_NEGATIVE) -> StageStatus:
+    """The rig's view of a KDC101 status word under a direction convention."""
+    d = directions if isinstance(directions, Directions) else Directions.named(directions)
     return StageStatus(
         raw=bits,
         moving=bool(bits & (MOVING_FORWARD | MOVING_REVERSE | JOGGING_FORWARD | JOGGING_REVERSE)),
@@ -49,8 +101,8 @@ def decode_status(bits: int) -> StageStatus:
         homed=bool(bits & HOMED),
         enabled=bool(bits & ENABLED),
         motor_connected=bool(bits & MOTOR_CONNECTED),
-        at_lower_limit=bool(bits & LIMIT_REVERSE),
-        at_upper_limit=bool(bits & LIMIT_FORWARD),
+        at_lower_limit=bool(bits & d.limit_bit(-1)),
+        at_upper_limit=bool(bits & d.limit_bit(+1)),
         position_error=bool(bits & POSITION_ERROR),
         error=bool(bits & ERROR),
     )

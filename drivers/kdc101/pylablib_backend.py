@@ -5,7 +5,7 @@ Thorlabs package imports). pylablib does the APT talking; this adapter converts 
 software limits before anything is sent, waits on the injected clock, maps pylablib's errors to
 ours, and sends a stop on any fault while moving (Ctrl-C included). Like ``KDC101``, the
 constructor does no I/O and ``open()`` connects (ADR 0050). Velocity moves use the direction
-table of ``payloads`` (pylablib's own ``jog`` inverts it, see ADR 0004).
+convention of ``payloads.Directions`` (the rig's ``direction``, ADR 0100).
 """
 
 from __future__ import annotations
@@ -173,7 +173,7 @@ class PylablibKDC101:
     def move_velocity(self, direction: int) -> None:
         if direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {direction}")
-        param = pl.DIRECTION_FORWARD if direction > 0 else pl.DIRECTION_REVERSE
+        param = pl.Directions.named(self.config.direction).code(direction)  # ADR 0100
         with self._mapped():
             self._maybe_moving = True
             self.motor.send_comm(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param)
@@ -190,7 +190,7 @@ class PylablibKDC101:
 
     def status(self) -> StageStatus:
         with self._mapped():
-            return pl.decode_status(int(self.motor.get_status_n()))
+            return pl.decode_status(int(self.motor.get_status_n()), self.config.direction)
 
     def is_moving(self) -> bool:
         return self.status().busy

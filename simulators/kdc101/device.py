@@ -5,11 +5,17 @@ trajectory, and anything the controller says on its own (move completed, homed, 
 updates every 100 ms) is produced, in time order, when a transport next asks for output. No
 thread is needed in virtual time. Transports: ``protocol_kdc101sim`` (in-process pyserial URL)
 and ``serve`` (TCP / pty server).
+
+It speaks only when asked, plus the status stream and the move-completed / stopped / homed
+notices; a request it does not know or rejects is logged (logger ``simulators.kdc101``) and
+recorded in ``rejected``, never answered with an error message (ADR 0101). Direction words
+and bits follow ``SimConfig.direction`` (ADR 0100).
 """
 
 from __future__ import annotations
 
 import bisect
+import logging
 import math
 import threading
 from collections.abc import Callable
@@ -34,6 +40,8 @@ from drivers.kdc101.apt import (
 )
 from instrument.clock import Clock
 from instrument.errors import ConfigError
+from instrument.stage import DIRECTIONS, FORWARD_IS_NEGATIVE
+from simulators.kdc101 import messages as sm
 from simulators.kdc101.kinematics import (
     Phase,
     Trajectory,
@@ -43,15 +51,11 @@ from simulators.kdc101.kinematics import (
     plan_velocity,
 )
 
+log = logging.getLogger("simulators.kdc101")
+
 T_UNIT = 2048 / 6e6  # KDC101 velocity/acceleration time unit (s)
 UPDATE_PERIOD_S = 0.1
 MAX_UNACKED_UPDATES = 50
-
-# Error codes of our HW_RICHRESPONSE replies (the real codes are not documented publicly).
-ERR_UNKNOWN_MESSAGE = 1
-ERR_BAD_CHANNEL = 2
-ERR_BAD_PARAMETER = 3
-ERR_DISABLED = 4
 
 
 @dataclass(frozen=True)
@@ -70,7 +74,7 @@ class SimConfig:
     accel_cap_m_s2: float = 10e-3
     firmware: tuple[int, int, int] = (3, 0, 10)
     stage_id: int = 9  # Z825 in the KDC101 stage table
-    rich_errors: bool = True  # HW_RICHRESPONSE (True) or bare HW_RESPONSE
+    direction: str = FORWARD_IS_NEGATIVE  # what APT "forward" means (ADR 0100)
 
     def __post_init__(self) -> None:
         if not 27000000 <= self.serial_number <= 27999999:
@@ -82,6 +86,8 @@ class SimConfig:
         if not 0 <= self.start_position_m <= self.travel_m:
             raise ConfigError("start_position_m", self.start_position_m,
                               f"must lie in [0, {self.travel_m}] m")
+        if self.direction not in DIRECTIONS:
+            raise ConfigError("direction", self.direction, f"allowed: {', '.join(DIRECTIONS)}")
         if not 0 <= self.home_offset_m < self.travel_m:
             raise ConfigError("home_offset_m", self.home_offset_m,
                               f"must lie in [0, {self.travel_m}) m")
@@ -104,6 +110,7 @@ class KDC101Simulator:
         c = self.config
         now = clock.now()
         self._lock = threading.RLock()
+        self.directions = pl.Directions.named(c.direction)
         self._framer = AptFramer()
         self._out = bytearray()
         self.kinematics = Trajectory(c.start_position_m, now)
@@ -116,6 +123,8 @@ class KDC101Simulator:
         self._home_params = pl.HomeParams(2, 1, self._apt_velocity(c.home_velocity_m_s),
                                           round(c.home_offset_m * c.counts_per_m))
         self._lim_params = pl.LimSwitchParams(2, 2, 0, 0, 1)
+        self._blocks = sm.power_on_blocks(c.counts_per_m, self._apt_velocity(c.max_velocity_m_s),
+                                          self._apt_accel(c.acceleration_m_s2))
         # The motion in progress: its kind, end time, direction and the event at its end.
         self._motion: str | None = None
         self._motion_end = math.inf
@@ -130,6 +139,7 @@ class KDC101Simulator:
         self.muted = False
         self.connected = True
         self.received: list[Message] = []
+        self.rejected: list[tuple[Message, str]] = []  # requests logged instead of answered
         self.garbage_received = 0
 
     # ---- unit conversions -------------------------------------------------------------
@@ -205,20 +215,23 @@ class KDC101Simulator:
             bits |= pl.ENABLED
         if self.homed:
             bits |= pl.HOMED
+        d = self.directions
         if self._motion is not None and t < self._motion_end:
-            direction = (v > 0) - (v < 0) or self._motion_dir
-            bits |= pl.MOVING_FORWARD if direction > 0 else pl.MOVING_REVERSE
+            direction = (v > 0) - (v < 0) or self._motion_dir or -1
+            bits |= d.moving_bit(direction)
+            if self._motion == "jog":
+                bits |= d.jogging_bit(direction)
             if self._motion == "home":
                 bits |= pl.HOMING
         soft = self.soft_limits_m()
         if soft is not None and x <= soft[0] + 1e-9:
-            bits |= pl.SOFT_LIMIT_REVERSE
+            bits |= d.soft_limit_bit(-1)
         if soft is not None and x >= soft[1] - 1e-9:
-            bits |= pl.SOFT_LIMIT_FORWARD
+            bits |= d.soft_limit_bit(+1)
         if x <= 1e-9:
-            bits |= pl.LIMIT_REVERSE
+            bits |= d.limit_bit(-1)
         if x >= self.config.travel_m - 1e-9:
-            bits |= pl.LIMIT_FORWARD
+            bits |= d.limit_bit(+1)
         return bits
 
     def _dc_status(self, t: float) -> pl.DcStatus:
@@ -332,12 +345,18 @@ class KDC101Simulator:
             self.connected = True
 
     # ---- message handling -------------------------------------------------------------
-    def _error(self, msg: Message, code: int, text: str) -> None:
-        if self.config.rich_errors:
-            rich = pl.RichResponse(msg.msg_id, code, text)
-            self._emit(data_message(MsgId.HW_RICHRESPONSE, rich.pack(), to_host=True))
+    def _reject(self, msg: Message, why: str) -> None:
+        """Log a request the controller does not obey; nothing goes on the wire."""
+        self.rejected.append((msg, why))
+        log.warning("KDC101 %d ignored %r: %s", self.config.serial_number, msg, why)
+
+    def inject_error(self, msg_id: int, code: int, text: str, rich: bool = True) -> None:
+        """Fault hook: put a HW_RICHRESPONSE (or bare HW_RESPONSE) on the wire now."""
+        if rich:
+            data = pl.RichResponse(msg_id, code, text).pack()
+            self.inject(encode(data_message(MsgId.HW_RICHRESPONSE, data, to_host=True)))
         else:
-            self._emit(command(MsgId.HW_RESPONSE, 0, 0, to_host=True))
+            self.inject(encode(command(MsgId.HW_RESPONSE, code & 0xFF, 0, to_host=True)))
 
     def _reply(self, msg_id: int, data: bytes) -> None:
         self._emit(data_message(msg_id, data, to_host=True))
@@ -347,14 +366,15 @@ class KDC101Simulator:
             return
         handler = _HANDLERS.get(msg.msg_id)
         if handler is None:
-            self._error(msg, ERR_UNKNOWN_MESSAGE, f"unknown message id 0x{msg.msg_id:04X}")
+            self._reject(msg, f"unknown message id 0x{msg.msg_id:04X}")
             return
-        form = FORMS[msg.msg_id]
-        channel = msg.data[0] | msg.data[1] << 8 if msg.data and form.has_channel else None
+        form = FORMS.get(msg.msg_id)
+        with_channel = (form is not None and form.has_channel) or msg.msg_id in _DATA_WITH_CHANNEL
+        channel = msg.data[0] | msg.data[1] << 8 if msg.data and with_channel else None
         if msg.data is None and msg.msg_id in _CHANNEL_IN_PARAM1:
             channel = msg.param1
         if channel is not None and channel != CHANNEL:
-            self._error(msg, ERR_BAD_CHANNEL, f"no channel {channel} (KDC101 has 1)")
+            self._reject(msg, f"no channel {channel} (KDC101 has 1)")
             return
         handler(self, msg, now)
 
@@ -380,7 +400,7 @@ class KDC101Simulator:
 
     def _on_set_enable(self, msg: Message, now: float) -> None:
         if msg.param2 not in (pl.CHAN_ENABLED, pl.CHAN_DISABLED):
-            self._error(msg, ERR_BAD_PARAMETER, f"enable state {msg.param2} (1 or 2)")
+            self._reject(msg, f"enable state {msg.param2} (1 or 2)")
             return
         self.enabled = msg.param2 == pl.CHAN_ENABLED
         if not self.enabled and self._motion is not None:
@@ -403,8 +423,8 @@ class KDC101Simulator:
         v, a = self._velocity_from_apt(p.max_velocity), self._accel_from_apt(p.acceleration)
         c, tol = self.config, 1 + 1e-6
         if not (0 < v <= c.velocity_cap_m_s * tol and 0 < a <= c.accel_cap_m_s2 * tol):
-            self._error(msg, ERR_BAD_PARAMETER,
-                        f"velocity {v * 1e3:.3f} mm/s or accel {a * 1e3:.3f} mm/s2 out of range")
+            self._reject(msg, f"velocity {v * 1e3:.3f} mm/s or accel {a * 1e3:.3f} mm/s2 "
+                         "out of range")
             return
         self._v_max, self._accel = v, a
 
@@ -415,7 +435,7 @@ class KDC101Simulator:
     def _on_set_homeparams(self, msg: Message, now: float) -> None:
         p = pl.HomeParams.unpack(msg.data or b"")
         if p.velocity <= 0 or self._velocity_from_apt(p.velocity) > self.config.velocity_cap_m_s:
-            self._error(msg, ERR_BAD_PARAMETER, "home velocity out of range")
+            self._reject(msg, "home velocity out of range")
             return
         self._home_params = p
 
@@ -440,16 +460,18 @@ class KDC101Simulator:
 
     def _require_enabled(self, msg: Message) -> bool:
         if not self.enabled:
-            self._error(msg, ERR_DISABLED, "channel disabled: enable it before moving")
+            self._reject(msg, "channel disabled: enable it before moving")
         return self.enabled
 
     def soft_limits_m(self) -> tuple[float, float] | None:
         """The controller's software limits as extensions, when active (homed, mode 2/3)."""
         p = self._lim_params
-        if not self.homed or p.mode not in (2, 3) or p.ccw_soft >= p.cw_soft:
+        if not self.homed or p.mode not in (2, 3) or p.ccw_soft == p.cw_soft:
             return None
+        # Which field holds which end is UNVERIFIED (ADR 0100): the pair is read unordered.
+        lo, hi = sorted((p.ccw_soft, p.cw_soft))
         cpm = self.config.counts_per_m
-        return self._origin_m + p.ccw_soft / cpm, self._origin_m + p.cw_soft / cpm
+        return self._origin_m + lo / cpm, self._origin_m + hi / cpm
 
     def _start(self, now: float, phases: list[Phase], kind: str, direction: int,
                end_event: int | None) -> None:
@@ -460,7 +482,7 @@ class KDC101Simulator:
         phases, t_hit = clip_to_travel(phases, lo, hi)
         self.kinematics.replace_from(now, phases)
         end = self.kinematics.end_time
-        if kind == "velocity" and t_hit is None:
+        if kind in ("velocity", "jog") and end_event is None and t_hit is None:
             end = math.inf  # runs until stopped
         if t_hit is not None:
             end_event = MsgId.MOT_MOVE_STOPPED  # stopped by a limit switch
@@ -477,12 +499,18 @@ class KDC101Simulator:
 
     def _on_move_absolute(self, msg: Message, now: float) -> None:
         if self._require_enabled(msg):
-            _, counts = pl.unpack_position(msg.data or b"")
+            if msg.data is None:  # the short form: the stored MOVEABSPARAMS position
+                counts = sm.long_of(self._blocks["moveabs"])
+            else:
+                _, counts = pl.unpack_position(msg.data)
             self._move_to_m(now, self._origin_m + counts / self.config.counts_per_m)
 
     def _on_move_relative(self, msg: Message, now: float) -> None:
         if self._require_enabled(msg):
-            _, counts = pl.unpack_position(msg.data or b"")
+            if msg.data is None:  # the short form: the stored MOVERELPARAMS distance
+                counts = sm.long_of(self._blocks["moverel"])
+            else:
+                _, counts = pl.unpack_position(msg.data)
             # Relative to the current target if moving, as the controller does.
             base = self._x(max(now, self.kinematics.end_time)) if self._motion == "move" \
                 else self._x(now)
@@ -490,17 +518,17 @@ class KDC101Simulator:
 
     def _on_move_velocity(self, msg: Message, now: float) -> None:
         if msg.param2 not in (pl.DIRECTION_FORWARD, pl.DIRECTION_REVERSE):
-            self._error(msg, ERR_BAD_PARAMETER, f"direction {msg.param2} (1 or 2)")
+            self._reject(msg, f"direction {msg.param2} (1 or 2)")
             return
         if self._require_enabled(msg):
-            direction = 1 if msg.param2 == pl.DIRECTION_FORWARD else -1
+            direction = self.directions.sign(msg.param2)
             x, v = self._x(now), self.kinematics.velocity_at(now)
             phases = plan_velocity(now, x, v, direction, self._v_max, self._accel)
             self._start(now, phases, "velocity", direction, None)
 
     def _on_move_stop(self, msg: Message, now: float) -> None:
         if msg.param2 not in (pl.STOP_IMMEDIATE, pl.STOP_PROFILED):
-            self._error(msg, ERR_BAD_PARAMETER, f"stop mode {msg.param2} (1 or 2)")
+            self._reject(msg, f"stop mode {msg.param2} (1 or 2)")
             return
         x, v = self._x(now), self.kinematics.velocity_at(now)
         phases = plan_stop(now, x, v, self._accel, immediate=msg.param2 == pl.STOP_IMMEDIATE)
@@ -518,7 +546,60 @@ class KDC101Simulator:
         rest = to_switch[-1]
         back_out = plan_move(rest.t0, 0.0, 0.0, offset, v_home, self._accel)
         self._homing_origin = offset
+        self.homed = False  # a new homing: HOMED clears now and sets when it completes
         self._start(now, to_switch[:-1] + back_out, "home", -1, MsgId.MOT_MOVE_HOMED)
+
+    def _on_move_jog(self, msg: Message, now: float) -> None:
+        if msg.param2 not in (pl.DIRECTION_FORWARD, pl.DIRECTION_REVERSE):
+            self._reject(msg, f"jog direction {msg.param2} (1 or 2)")
+            return
+        if not self._require_enabled(msg):
+            return
+        direction = self.directions.sign(msg.param2)
+        jog = sm.JogParams.unpack(self._blocks["jog"])
+        v_jog = self._velocity_from_apt(jog.max_velocity)
+        a_jog = self._accel_from_apt(jog.acceleration)
+        x, v = self._x(now), self.kinematics.velocity_at(now)
+        if jog.mode == sm.JOG_CONTINUOUS:  # runs until MOT_MOVE_STOP (or a limit)
+            self._start(now, plan_velocity(now, x, v, direction, v_jog, a_jog), "jog",
+                        direction, None)
+            return
+        base = self._x(max(now, self.kinematics.end_time)) if self._motion == "jog" else x
+        target = base + direction * jog.step / self.config.counts_per_m
+        self._start(now, plan_move(now, x, v, target, v_jog, a_jog), "jog", direction,
+                    MsgId.MOT_MOVE_COMPLETED)
+
+    # ---- parameter blocks and the rest of the KDC101 set ------------------------------
+    def _on_set_block(self, msg: Message, now: float) -> None:
+        block = sm.BLOCK_BY_SET[msg.msg_id]
+        data = msg.data or b""
+        if len(data) not in block.lengths():
+            self._reject(msg, f"{block.name} parameters: {len(data)} bytes, "
+                              f"expected {' or '.join(map(str, block.lengths()))}")
+            return
+        data = data.ljust(block.length, b"\0")[:block.length]
+        if block.name == "jog":
+            jog = sm.JogParams.unpack(data)
+            v = self._velocity_from_apt(jog.max_velocity)
+            a = self._accel_from_apt(jog.acceleration)
+            c, tol = self.config, 1 + 1e-6
+            if (jog.mode not in (sm.JOG_CONTINUOUS, sm.JOG_STEP)
+                    or jog.stop_mode not in (pl.STOP_IMMEDIATE, pl.STOP_PROFILED)
+                    or not 0 < v <= c.velocity_cap_m_s * tol
+                    or not 0 < a <= c.accel_cap_m_s2 * tol):
+                self._reject(msg, f"jog parameters out of range: {jog}")
+                return
+        self._blocks[block.name] = data
+
+    def _on_req_block(self, msg: Message, now: float) -> None:
+        block = sm.BLOCK_BY_REQ[msg.msg_id]
+        self._reply(block.get_id, self._blocks[block.name])
+
+    def _on_req_enccounter(self, msg: Message, now: float) -> None:
+        self._reply(sm.SimMsgId.MOT_GET_ENCCOUNTER, pl.pack_position(self.counts_at(now)))
+
+    def _on_req_bayused(self, msg: Message, now: float) -> None:
+        self._emit(command(sm.SimMsgId.HUB_GET_BAYUSED, sm.BAY_STANDALONE, 0, to_host=True))
 
 
 _HANDLERS: dict[int, Callable[[KDC101Simulator, Message, float], None]] = {
@@ -545,12 +626,25 @@ _HANDLERS: dict[int, Callable[[KDC101Simulator, Message, float], None]] = {
     MsgId.MOT_MOVE_VELOCITY: KDC101Simulator._on_move_velocity,
     MsgId.MOT_MOVE_STOP: KDC101Simulator._on_move_stop,
     MsgId.MOT_MOVE_HOME: KDC101Simulator._on_move_home,
+    sm.SimMsgId.HW_DISCONNECT: KDC101Simulator._on_nothing,
+    sm.SimMsgId.HUB_REQ_BAYUSED: KDC101Simulator._on_req_bayused,
+    # A DC servo's position counter is its encoder counter.
+    sm.SimMsgId.MOT_SET_ENCCOUNTER: KDC101Simulator._on_set_poscounter,
+    sm.SimMsgId.MOT_REQ_ENCCOUNTER: KDC101Simulator._on_req_enccounter,
+    sm.SimMsgId.MOT_MOVE_JOG: KDC101Simulator._on_move_jog,
+    **{b.set_id: KDC101Simulator._on_set_block for b in sm.BLOCKS},
+    **{b.req_id: KDC101Simulator._on_req_block for b in sm.BLOCKS},
 }
+
+# Payloads (outside the driver's table) whose first word is the channel.
+_DATA_WITH_CHANNEL = {sm.SimMsgId.MOT_SET_ENCCOUNTER, *(b.set_id for b in sm.BLOCKS)}
 
 # Header-only requests whose param1 is the channel.
 _CHANNEL_IN_PARAM1 = {
     MsgId.MOD_SET_CHANENABLESTATE, MsgId.MOD_REQ_CHANENABLESTATE, MsgId.MOT_REQ_POSCOUNTER,
     MsgId.MOT_REQ_VELPARAMS, MsgId.MOT_REQ_HOMEPARAMS, MsgId.MOT_REQ_LIMSWITCHPARAMS,
     MsgId.MOT_REQ_STATUSBITS, MsgId.MOT_REQ_DCSTATUSUPDATE, MsgId.MOT_MOVE_HOME,
-    MsgId.MOT_MOVE_VELOCITY, MsgId.MOT_MOVE_STOP,
+    MsgId.MOT_MOVE_VELOCITY, MsgId.MOT_MOVE_STOP, MsgId.MOT_MOVE_RELATIVE,
+    MsgId.MOT_MOVE_ABSOLUTE, sm.SimMsgId.MOT_REQ_ENCCOUNTER, sm.SimMsgId.MOT_MOVE_JOG,
+    *(b.req_id for b in sm.BLOCKS),
 }

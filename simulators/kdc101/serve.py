@@ -10,6 +10,7 @@ from __future__ import annotations
 import abc
 import argparse
 import contextlib
+import logging
 import os
 import select
 import signal
@@ -26,6 +27,8 @@ from simulators.kdc101.device import KDC101Simulator, SimConfig
 from simulators.serve_options import kdc101_arguments as add_arguments
 
 POLL_S = 0.002  # how often the loop looks for due status updates and motion events
+
+log = logging.getLogger("simulators.kdc101")
 
 
 class _Server(abc.ABC):
@@ -100,6 +103,7 @@ class TcpServer(_Server):
         self._listener.settimeout(0.1)
         h, p = self._listener.getsockname()[:2]
         self.address = f"socket://{h}:{p}"
+        self.refused = 0  # second clients turned away while one was connected
 
     def serve_forever(self) -> None:
         while not self._stop.is_set():
@@ -115,7 +119,21 @@ class TcpServer(_Server):
                 self.sim.discard_output()
                 fd = conn.fileno()
                 while not self._stop.is_set() and self._pump(fd, fd, fd):
-                    pass
+                    self._refuse_others()
+
+    def _refuse_others(self) -> None:
+        """A second client is closed at once, as a serial port in use refuses a second open."""
+        readable, _, _ = select.select([self._listener], [], [], 0)
+        if not readable:
+            return
+        try:
+            extra, peer = self._listener.accept()
+        except OSError:
+            return
+        self.refused += 1
+        log.warning("kdc101 simulator at %s: refused a second client %s (one at a time, "
+                    "like a serial port)", self.address, peer)
+        extra.close()
 
     def close(self) -> None:
         self._listener.close()
@@ -150,6 +168,7 @@ def _config(args: argparse.Namespace) -> SimConfig:
         travel_m=to_si(args.travel, "m", "--travel", opt),
         start_position_m=to_si(args.start_position, "m", "--start-position", opt),
         home_offset_m=to_si(args.home_offset, "m", "--home-offset", opt),
+        direction=args.direction,
     )
 
 
@@ -169,6 +188,7 @@ def _parse_tcp(text: str) -> tuple[str, int]:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted (or ``--duration``); prints where it listens."""
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     sim = KDC101Simulator(_clock(args.clock), _config(args))
     server: _Server = TcpServer(sim, *_parse_tcp(args.tcp)) if args.tcp else PtyServer(sim)
     print(f"kdc101 simulator (serial {sim.config.serial_number}, clock {args.clock}) "

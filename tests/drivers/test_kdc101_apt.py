@@ -51,10 +51,28 @@ def test_payload_layouts_have_the_documented_sizes() -> None:
 
 
 def test_status_bits_decode() -> None:
-    s = pl.decode_status(0x80000000 | 0x400 | 0x100 | 0x10 | 0x02)
+    s = pl.decode_status(0x80000000 | 0x400 | 0x100 | 0x10 | 0x01)  # KDC101 default
     assert s.enabled and s.homed and s.motor_connected and s.moving and s.at_lower_limit
     assert not s.at_upper_limit and not s.homing and not s.error
+    t = pl.decode_status(0x80000000 | 0x10 | 0x01, "forward_is_positive")
+    assert t.at_upper_limit and not t.at_lower_limit
     assert pl.decode_status(0x200).busy and not pl.decode_status(0x200).moving
+
+
+@pytest.mark.parametrize(
+    ("name", "up_code", "up_moving", "low_limit"),
+    [("forward_is_negative", 2, 0x20, 0x01), ("forward_is_positive", 1, 0x10, 0x02)],
+)
+def test_direction_conventions(name: str, up_code: int, up_moving: int, low_limit: int) -> None:
+    d = pl.Directions.named(name)
+    assert d.code(+1) == up_code and d.code(-1) == 3 - up_code
+    assert d.sign(up_code) == 1 and d.sign(3 - up_code) == -1
+    assert d.moving_bit(+1) == up_moving and d.jogging_bit(+1) == up_moving << 2
+    assert d.limit_bit(-1) == low_limit and d.soft_limit_bit(-1) == low_limit << 2
+    with pytest.raises(ValueError):
+        d.sign(3)
+    with pytest.raises(ValueError):
+        pl.Directions.named("forwards")
 
 
 def test_wrong_payload_length_is_a_framing_error() -> None:

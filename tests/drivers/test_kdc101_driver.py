@@ -119,7 +119,7 @@ def test_non_blocking_move_reports_moving_with_direction_bits(rig: Rig) -> None:
     rig.clock.advance(1.0)
     st = rig.stage.status()
     assert st.moving and st.busy
-    assert st.raw & 0x10  # moving towards larger positions
+    assert st.raw & 0x20 and not st.raw & 0x10  # KDC101: 0x20 is towards larger counts
     assert 0 < rig.stage.position() < 10e-3
     rig.stage.wait_until_stopped()
     assert rig.stage.position_counts() == round(10 * CPM)
@@ -153,9 +153,9 @@ def test_velocity_move_runs_until_stopped(rig: Rig) -> None:
     assert p == pytest.approx(2.3e-3 * (2.0 - ramp) + 0.5 * 4e-3 * ramp**2, rel=1e-4)
     rig.stage.move_velocity(-1)
     rig.clock.advance(0.1)
-    assert rig.stage.status().raw & 0x10  # still decelerating: 0.575 s to turn round
+    assert rig.stage.status().raw & 0x20  # still decelerating: 0.575 s to turn round
     rig.clock.advance(1.0)
-    assert rig.stage.status().raw & 0x20  # now moving towards smaller positions
+    assert rig.stage.status().raw & 0x10  # now moving towards smaller positions
     rig.stage.stop()
     assert not rig.stage.is_moving()
 
@@ -166,7 +166,7 @@ def test_controller_soft_limits_stop_a_velocity_move(rig: Rig) -> None:
     rig.clock.advance(60.0)
     st = rig.stage.status()
     assert not st.busy
-    assert st.raw & 0x04  # soft limit (forward)
+    assert st.raw & 0x08  # the soft limit of larger counts (the protocol's "reverse")
     assert rig.stage.position_counts() == pytest.approx(round(20 * CPM), abs=1)
 
 

@@ -75,15 +75,14 @@ def test_unknown_message_from_the_controller_is_ignored(rig: Rig) -> None:
     assert rig.stage.framing_errors == 0
 
 
-def test_unknown_message_to_the_controller_gets_an_error_reply(rig: Rig) -> None:
+def test_unknown_message_to_the_controller_is_logged_not_answered(rig: Rig) -> None:
     rig.stage._send(command(0x7777))
-    with pytest.raises(DeviceErrorReply, match="unknown message id 0x7777") as info:
-        rig.stage.status()
-    assert info.value.code == 1
+    assert rig.stage.position_counts() == 0  # the next reply is not shifted by an error
+    assert "unknown message id 0x7777" in rig.sim.rejected[-1][1]
 
 
 def test_error_reply_to_a_move_raises_and_commands_a_stop(rig: Rig) -> None:
-    rig.stage.disable()
+    rig.sim.inject_error(MsgId.MOT_MOVE_ABSOLUTE, 4, "channel disabled")
     with pytest.raises(DeviceErrorReply, match="channel disabled") as info:
         rig.stage.move_to(3e-3)
     assert info.value.code == 4
@@ -92,11 +91,18 @@ def test_error_reply_to_a_move_raises_and_commands_a_stop(rig: Rig) -> None:
     assert rig.sim.position_at(rig.clock.now()) == pytest.approx(rig.sim.counter_origin_m)
 
 
-def test_plain_hw_response_is_an_error_reply_too() -> None:
-    for rig in _rig(SimConfig(rich_errors=False)):
-        rig.stage._send(command(MsgId.MOT_MOVE_VELOCITY, 1, 7))  # no direction 7
-        with pytest.raises(DeviceErrorReply, match="HW_RESPONSE"):
-            rig.stage.status()
+def test_plain_hw_response_is_an_error_reply_too(rig: Rig) -> None:
+    rig.sim.inject_error(0, 7, "", rich=False)
+    with pytest.raises(DeviceErrorReply, match="HW_RESPONSE"):
+        rig.stage.status()
+
+
+def test_a_disabled_channel_ignores_moves_and_the_driver_reports_the_miss(rig: Rig) -> None:
+    rig.stage.disable()
+    with pytest.raises(InstrumentError, match="target was"):
+        rig.stage.move_to(3e-3)
+    assert "channel disabled" in rig.sim.rejected[-1][1]
+    assert rig.sim.position_at(rig.clock.now()) == pytest.approx(rig.sim.counter_origin_m)
 
 
 def test_quiet_link_mid_move_times_out_and_stops_the_stage(rig: Rig) -> None:

@@ -121,7 +121,7 @@ def test_stage_on_pylablib_homes_moves_and_refuses_limits(sim: Sim) -> None:
 def test_stage_on_pylablib_maps_error_replies(sim: Sim) -> None:
     stage = PylablibKDC101(sim.url, clock=sim.clock).open()
     try:
-        stage.motor.send_comm(0x0210, 1, 2)  # disable the channel
+        sim.sim.inject_error(0x0457, 4, "channel disabled")
         with pytest.raises(DeviceErrorReply):
             stage.move_velocity(+1)
             stage.status()

@@ -29,6 +29,8 @@ from simulators.kdc101.kinematics import (
 )
 
 CPM = 34554.96
+D = pl.Directions.named("forward_is_negative")  # the default convention (ADR 0100)
+UP = D.code(+1)  # the direction code towards larger counts (2 on a KDC101)
 ROOT = Path(__file__).resolve().parents[2]
 _names = itertools.count()
 
@@ -168,7 +170,7 @@ def test_status_updates_stop_after_50_unacknowledged(wire: Wire) -> None:
 
 def test_acknowledged_status_updates_keep_coming_every_100_ms(wire: Wire) -> None:
     wire.send(command(MsgId.HW_START_UPDATEMSGS))
-    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, pl.DIRECTION_FORWARD))
+    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, UP))
     updates: list[pl.DcStatus] = []
     times: list[float] = []
     for _ in range(20):  # 10 s, acknowledging every 0.5 s
@@ -178,25 +180,27 @@ def test_acknowledged_status_updates_keep_coming_every_100_ms(wire: Wire) -> Non
                 times.append(wire.clock.now())
         wire.send(command(MsgId.MOT_ACK_DCSTATUSUPDATE))
     assert len(updates) == 100
-    assert all(u.bits & pl.MOVING_FORWARD for u in updates)
+    assert UP == pl.DIRECTION_REVERSE
+    assert all(u.bits & D.moving_bit(+1) == pl.MOVING_REVERSE for u in updates)
     positions = [u.position for u in updates]
     assert positions == sorted(positions) and positions[-1] > positions[0]
 
 
-def test_velocity_move_ends_on_the_forward_hard_limit(wire: Wire) -> None:
-    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, pl.DIRECTION_FORWARD))
+def test_velocity_move_ends_on_the_far_hard_limit(wire: Wire) -> None:
+    wire.send(command(MsgId.MOT_MOVE_VELOCITY, 1, UP))
     msgs = wire.messages(30.0)  # 20 mm at 2 mm/s takes ~10 s
     stopped = [m for m in msgs if m.msg_id == MsgId.MOT_MOVE_STOPPED]
     assert len(stopped) == 1
     bits = pl.DcStatus.unpack(stopped[0].data or b"").bits
-    assert bits & pl.LIMIT_FORWARD and not bits & pl.BUSY
+    assert bits & pl.LIMIT_REVERSE and not bits & pl.LIMIT_FORWARD and not bits & pl.BUSY
     assert wire.sim.position_at(wire.clock.now()) == 25e-3
 
 
 def test_homing_sets_the_homed_bit_and_zeroes_the_counter(wire: Wire) -> None:
     wire.send(command(MsgId.MOT_MOVE_HOME, 1))
     during = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
-    assert during & pl.HOMING and during & pl.MOVING_REVERSE
+    # Homing runs to smaller counts: the protocol's "forward" moving bit on a KDC101.
+    assert during & pl.HOMING and during & pl.MOVING_FORWARD and not during & pl.MOVING_REVERSE
     msgs = wire.messages(20.0)
     assert [m.msg_id for m in msgs] == [MsgId.MOT_MOVE_HOMED]
     bits = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
@@ -205,31 +209,132 @@ def test_homing_sets_the_homed_bit_and_zeroes_the_counter(wire: Wire) -> None:
 
 
 @pytest.mark.parametrize(
-    ("request_msg", "code", "text"),
+    ("request_msg", "text"),
     [
-        (command(0x0777), 1, "unknown message id"),
-        (command(MsgId.MOT_REQ_POSCOUNTER, 2), 2, "no channel 2"),
-        (data_message(MsgId.MOT_SET_VELPARAMS, pl.VelParams(0, 1000, 10**8).pack()), 3,
+        (command(0x0777), "unknown message id"),
+        (command(MsgId.MOT_REQ_POSCOUNTER, 2), "no channel 2"),
+        (data_message(MsgId.MOT_SET_VELPARAMS, pl.VelParams(0, 1000, 10**8).pack()),
          "out of range"),
-        (command(MsgId.MOT_MOVE_STOP, 1, 9), 3, "stop mode"),
+        (command(MsgId.MOT_MOVE_STOP, 1, 9), "stop mode"),
         # A reply sent as a request:
-        (data_message(MsgId.HW_GET_INFO, bytes(84)), 1, "unknown message id"),
+        (data_message(MsgId.HW_GET_INFO, bytes(84)), "unknown message id"),
     ],
 )
-def test_invalid_requests_get_a_rich_response(wire: Wire, request_msg: Message, code: int,
-                                              text: str) -> None:
-    reply = wire.ask(request_msg)
-    assert reply.msg_id == MsgId.HW_RICHRESPONSE
-    rich = pl.RichResponse.unpack(reply.data or b"")
-    assert (rich.msg_id, rich.code) == (request_msg.msg_id, code)
-    assert text in rich.text
+def test_invalid_requests_are_logged_not_answered(wire: Wire, request_msg: Message, text: str,
+                                                  caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level("WARNING", logger="simulators.kdc101"):
+        wire.send(request_msg)
+        # The next query's reply is the next thing on the wire: no error message before it.
+        reply = wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1))
+    assert reply.msg_id == MsgId.MOT_GET_STATUSBITS
+    assert wire.messages(1.0) == []
+    assert len(wire.sim.rejected) == 1 and text in wire.sim.rejected[0][1]
+    assert text in caplog.text
 
 
-def test_moving_a_disabled_channel_is_refused(wire: Wire) -> None:
+def test_moving_a_disabled_channel_is_ignored_and_logged(wire: Wire) -> None:
     wire.send(command(MsgId.MOD_SET_CHANENABLESTATE, 1, pl.CHAN_DISABLED))
-    reply = wire.ask(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(5000)))
-    assert pl.RichResponse.unpack(reply.data or b"").code == 4
+    wire.send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(5000)))
+    assert wire.messages(1.0) == []
+    assert "channel disabled" in wire.sim.rejected[-1][1]
     assert wire.sim.velocity_at(wire.clock.now() + 0.5) == 0.0
+
+
+def _counts(wire: Wire) -> int:
+    return pl.unpack_position(wire.ask(command(MsgId.MOT_REQ_POSCOUNTER, 1)).data or b"")[1]
+
+
+def test_short_form_moves_use_the_stored_parameters_and_the_next_command_survives(
+        wire: Wire) -> None:
+    wire.send(data_message(0x0445, pl.pack_position(3000)))  # MOVERELPARAMS
+    wire.send(data_message(0x0450, pl.pack_position(-8000)))  # MOVEABSPARAMS
+    # Header-only MOVE_RELATIVE and a status request in the same write.
+    wire.port.write(encode(command(MsgId.MOT_MOVE_RELATIVE, 1))
+                    + encode(command(MsgId.MOT_REQ_STATUSBITS, 1)))
+    wire.port.flush()
+    first = wire.messages(0.001)
+    assert [m.msg_id for m in first] == [MsgId.MOT_GET_STATUSBITS]
+    assert [m.msg_id for m in wire.messages(5.0)] == [MsgId.MOT_MOVE_COMPLETED]
+    assert _counts(wire) == 3000
+    wire.send(command(MsgId.MOT_MOVE_ABSOLUTE, 1))
+    assert [m.msg_id for m in wire.messages(5.0)] == [MsgId.MOT_MOVE_COMPLETED]
+    assert _counts(wire) == -8000
+    assert wire.sim.garbage_received == 0 and wire.sim.rejected == []
+
+
+@pytest.mark.parametrize(
+    ("set_id", "req_id", "get_id", "payload"),
+    [
+        (0x0416, 0x0417, 0x0418, bytes.fromhex("0100") + bytes.fromhex("0200") +
+         (1000).to_bytes(4, "little") + bytes(4) + (500).to_bytes(4, "little") +
+         (200000).to_bytes(4, "little") + bytes.fromhex("0100")),
+        (0x043A, 0x043B, 0x043C, pl.pack_position(1234)),
+        (0x0445, 0x0446, 0x0447, pl.pack_position(-77)),
+        (0x0450, 0x0451, 0x0452, pl.pack_position(4321)),
+        (0x04A0, 0x04A1, 0x04A2, bytes.fromhex("0100") + bytes(range(1, 19))),
+        (0x04B0, 0x04B1, 0x04B2, bytes.fromhex("0100") + bytes(range(2, 26))),
+        (0x0520, 0x0521, 0x0522, bytes.fromhex("0100") + bytes(range(3, 35))),
+        (0x0523, 0x0524, 0x0525, bytes.fromhex("0100") + bytes(range(4, 24))),
+        (0x0526, 0x0527, 0x0528, bytes.fromhex("0100") + bytes(range(5, 43))),
+    ],
+)
+def test_parameter_blocks_read_back_what_was_set(wire: Wire, set_id: int, req_id: int,
+                                                 get_id: int, payload: bytes) -> None:
+    before = wire.ask(command(req_id, 1))
+    assert before.msg_id == get_id and before.data is not None
+    assert len(before.data) == len(payload) and before.data != payload
+    wire.send(data_message(set_id, payload))
+    after = wire.ask(command(req_id, 1))
+    assert (after.msg_id, after.data) == (get_id, payload)
+    assert wire.sim.rejected == []
+
+
+def test_short_trigger_blocks_as_pylablib_sends_them_are_padded(wire: Wire) -> None:
+    wire.send(data_message(0x0523, bytes.fromhex("0100 0100 0100 0b00 0000")))
+    reply = wire.ask(command(0x0524, 1))
+    assert reply.data == bytes.fromhex("0100 0100 0100 0b00 0000") + bytes(12)
+    wire.send(data_message(0x0523, bytes.fromhex("0100") + bytes(5)))
+    assert "expected 22 or 10" in wire.sim.rejected[-1][1]
+
+
+def test_encoder_counter_is_the_position_counter(wire: Wire) -> None:
+    wire.send(data_message(0x0409, pl.pack_position(500)))
+    assert _counts(wire) == 500
+    reply = wire.ask(command(0x040A, 1))
+    assert reply.msg_id == 0x040B and pl.unpack_position(reply.data or b"")[1] == 500
+
+
+def test_hub_bay_used_says_stand_alone(wire: Wire) -> None:
+    reply = wire.ask(command(0x0065))
+    assert (reply.msg_id, reply.data, reply.param1) == (0x0066, None, 0xFF)
+
+
+def test_step_jog_moves_one_step_towards_the_code_and_sets_the_jogging_bit(wire: Wire) -> None:
+    step = 1500
+    wire.send(data_message(0x0416, bytes.fromhex("0100 0200") + step.to_bytes(4, "little")
+                           + bytes(4) + (300).to_bytes(4, "little")
+                           + (100000).to_bytes(4, "little") + bytes.fromhex("0200")))
+    wire.send(command(0x046A, 1, UP))
+    bits = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
+    assert bits & D.jogging_bit(+1) and bits & D.moving_bit(+1)
+    assert [m.msg_id for m in wire.messages(5.0)] == [MsgId.MOT_MOVE_COMPLETED]
+    assert _counts(wire) == step
+    wire.send(command(0x046A, 1, D.code(-1)))
+    wire.messages(5.0)
+    assert _counts(wire) == 0
+
+
+def test_rehoming_clears_homed_until_it_completes(wire: Wire) -> None:
+    wire.send(command(MsgId.MOT_MOVE_HOME, 1))
+    wire.messages(20.0)
+    wire.send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(round(3 * CPM))))
+    wire.messages(10.0)
+    wire.send(command(MsgId.MOT_MOVE_HOME, 1))
+    bits = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
+    assert bits & pl.HOMING and not bits & pl.HOMED
+    assert [m.msg_id for m in wire.messages(20.0)] == [MsgId.MOT_MOVE_HOMED]
+    bits = pl.unpack_statusbits(wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1)).data or b"")[1]
+    assert bits & pl.HOMED and not bits & pl.HOMING
 
 
 def test_plate_position_is_a_pure_function_of_time() -> None:
