@@ -51,6 +51,7 @@ class ConsoleView:
         self.console = console or Console(stderr=True)
         self.log_path = log_path
         self._headline = ""  # the trip or fault waiting for its safe state
+        self._closed = False
         self.progress = Progress(
             TextColumn("[bold]{task.description}"), BarColumn(),
             TextColumn("{task.percentage:>5.1f}%"), TextColumn("ETA {task.fields[eta]}"),
@@ -58,7 +59,7 @@ class ConsoleView:
             auto_refresh=False,
         )
         self._task: TaskID | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # say() may be re-entered by a signal handler
 
     def __enter__(self) -> ConsoleView:
         self.progress.start()
@@ -68,7 +69,8 @@ class ConsoleView:
         self.close()
 
     def close(self) -> None:
-        """Stop the progress display (idempotent)."""
+        """Stop the progress display and show no more events (idempotent)."""
+        self._closed = True
         if self._lock.acquire(timeout=1.0):
             try:
                 self.progress.stop()
@@ -84,6 +86,8 @@ class ConsoleView:
                 self._lock.release()
 
     def __call__(self, event: Event) -> None:
+        if self._closed:
+            return
         with self._lock:
             self._handle(event)
             self.progress.refresh()

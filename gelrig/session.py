@@ -17,6 +17,7 @@ import signal
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from types import FrameType
@@ -196,7 +197,7 @@ def _execute(recorded: RecordedRun, run: RunDirectory, show: bool, log_path: Pat
         while worker.is_alive():
             worker.join(0.1)
             if worker.is_alive() and _stuck(recorded, interrupts):
-                _emergency_end(recorded, run, log_path, view, exit)
+                _emergency_end(recorded, run, log_path, view, exit, worker)
                 worker.join(1.0)  # ``exit`` returned (a test): let the thread be
                 break
     if not outcome:
@@ -209,7 +210,7 @@ def _execute(recorded: RecordedRun, run: RunDirectory, show: bool, log_path: Pat
 
 def _stuck(recorded: RecordedRun, interrupts: Interrupts) -> bool:
     """True when an abort was asked for and the run thread has not begun its way out in
-    time (a third Ctrl-C: at once), or its safe stop overran its own budget."""
+    time (a third Ctrl-C: at once), or its own safe stop overran its budget."""
     control = recorded.control
     if control.abort_time is None:
         return False
@@ -220,14 +221,20 @@ def _stuck(recorded: RecordedRun, interrupts: Interrupts) -> bool:
 
 
 def _emergency_end(recorded: RecordedRun, run: RunDirectory, log_path: Path,
-                   view: ConsoleView | None, exit: Callable[[int], object]) -> None:
+                   view: ConsoleView | None, exit: Callable[[int], object],
+                   worker: threading.Thread) -> None:
     """The run thread is stuck: safe stop from here (on a thread, bounded), record, one line,
     exit (3 aborted, 1 failed by the watchdog)."""
     control = recorded.control
+    frame = sys._current_frames().get(worker.ident or -1)
+    if frame is not None:
+        log.error("the run thread is stuck here:\n%s", "".join(traceback.format_stack(frame)))
     failed = bool(control.fault_kind)
     status = "failed" if failed else "aborted"
     reason = control.abort_reason + " (the run was stuck in an instrument call)"
     log.error("run %s: %s; safe stop from the main thread", status, reason)
+    if view is not None:
+        view.close()  # from now on this thread tells the end, in one line
     try:
         safe = bounded(lambda: recorded.rig.safe_stop(reason, EMERGENCY_BUDGET),
                        EMERGENCY_BUDGET + 2.0, "safe stop")
@@ -248,8 +255,6 @@ def _emergency_end(recorded: RecordedRun, run: RunDirectory, log_path: Path,
         log.error("could not record the end in run.json: %s", exc, exc_info=True)
     head = f"{'FAULT' if failed else 'ABORTED'}: {reason}"
     line = f"{head}; {safe.line()}; details: {log_path}"
-    if view is not None:
-        view.close()
     print(line, file=sys.stderr, flush=True)
     for handler in logging.getLogger().handlers:
         handler.flush()

@@ -28,7 +28,6 @@ from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
 from instrument.stage import StageConfig, StageStatus
 from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
 
-
 #: Longest a frozen fake blocks a call (s, wall): every wait in the tests is bounded.
 FREEZE_LIMIT = 30.0
 

@@ -10,7 +10,7 @@ import pytest
 
 from instrument.store import RunDirectory
 from protocols.control import RunControl
-from protocols.events import EventBus, Event, Fault, RunState, SafeStopped
+from protocols.events import Event, EventBus, Fault, RunState, SafeStopped
 from protocols.rig import CompressionLimits, ShearLimits
 from protocols.runner import Runner
 from protocols.safestop import Unanswered, bounded
@@ -46,7 +46,7 @@ def test_bounded_returns_raises_and_gives_up() -> None:
         bounded(lambda: 1 / 0, 1.0, "x")
     gate = threading.Event()
     start = time.monotonic()
-    with pytest.raises(Unanswered, match="no answer within 0.2 s"):
+    with pytest.raises(Unanswered, match=r"no answer within 0\.2 s"):
         bounded(lambda: gate.wait(10), 0.2, "x")
     assert time.monotonic() - start < 2.0
     gate.set()
@@ -115,8 +115,8 @@ def test_a_stop_that_raises_but_reads_back_stopped_is_verified_by_the_read_back(
     assert safe.line().startswith("motion stopped (verified)")
 
 
-def test_an_abort_mid_ramp_stops_and_retracts() -> None:
-    rig, stage, _ = compression_rig()
+def test_an_abort_mid_hold_stops_and_retracts() -> None:
+    rig, _stage, _ = compression_rig()
     control = RunControl()
     bus = EventBus()
     seen = events_of(bus)
@@ -167,7 +167,7 @@ def test_shear_only_stops_when_asked_or_unreferenced() -> None:
 
 
 def test_run_json_records_the_safe_state(tmp_path: Path) -> None:
-    rig, stage, force = compression_rig()
+    rig, _stage, force = compression_rig()
     force.faults.fail_at = 50.0
     run = RunDirectory.create(tmp_path / "run", {})
     recorded = RecordedRun(rig, protocol("compression", HOLD)).record(run)
@@ -183,7 +183,7 @@ def test_run_json_records_the_safe_state(tmp_path: Path) -> None:
 
 
 def test_watchdog_faults_a_run_whose_data_stops(tmp_path: Path) -> None:
-    rig, stage, force = compression_rig(limits=CompressionLimits(watchdog=0.3))
+    rig, _stage, force = compression_rig(limits=CompressionLimits(watchdog=0.3))
     control = RunControl()
     bus = EventBus()
     seen = events_of(bus)
@@ -232,3 +232,40 @@ def test_watchdog_is_quiet_while_events_flow_or_paused() -> None:
     dog(StateChanged(0.0, RunState.PAUSED, RunState.RUNNING))
     now[0] = 106.0
     assert dog.check() and control.abort_requested and control.fault_kind == "WatchdogExpired"
+
+
+def test_cli_ends_a_run_stuck_in_a_frozen_instrument(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The watchdog fires, the run thread cannot see it (its read is frozen): the CLI's
+    execute does the safe stop itself, records it and exits 1 (a fault)."""
+    from gelrig import session
+
+    monkeypatch.setattr(session, "GRACE", 0.3)
+    rig, _stage, force = compression_rig(limits=CompressionLimits(watchdog=0.3))
+    bus = EventBus()
+
+    def freeze_in_hold(event: Event) -> None:
+        if rig.clock.now() > 60.0 and not force.faults.frozen.is_set():
+            force.faults.freeze()
+
+    bus.subscribe(freeze_in_hold)
+    run = RunDirectory.create(tmp_path / "run", {})
+    recorded = RecordedRun(rig, protocol("compression", HOLD), bus).record(run)
+    codes: list[int] = []
+    log_path = tmp_path / "run" / "gelrig.log"
+    start = time.monotonic()
+    try:
+        with session.run_logging(log_path), pytest.raises(Exception, match="did not end"):
+            session._execute(recorded, run, False, log_path, codes.append)
+        took = time.monotonic() - start
+        assert force.faults.blocked.is_set()  # really stuck in the read
+    finally:
+        force.faults.thaw()
+    assert codes == [1]
+    assert took < 8.0
+    meta = run.read_metadata()
+    assert meta["status"] == "failed"
+    assert meta["reason"].startswith("watchdog: no data for")
+    assert meta["faults"][0]["kind"] == "WatchdogExpired"
+    assert meta["safe_state"]["line"] == "motion stopped (verified); plate retracted to 4.200 mm"
+    assert "the run thread is stuck here" in log_path.read_text()
