@@ -121,4 +121,4 @@ class ConsoleView:
             safe = event.state.line()
             safe = safe if event.state.verified else f"[bold red]{safe}[/]"
             where = f"; details: {self.log_path}" if self.log_path else ""
-            self.console.print(f"{head}; {safe}{where}", highlight=False)
+            self.console.print(f"{head}; {safe}{where}", highlight=False, soft_wrap=True)
