@@ -161,6 +161,8 @@ def execute(
     is stuck in an instrument call, this thread runs the safe stop itself, records it in
     run.json, prints the one line and calls ``exit`` (3 aborted, 1 failed).
     """
+    import gelrig.console  # noqa: F401 - imported before the run shows as "running"
+
     with run_logging(run.path / LOG_NAME) as log_path:
         rig = build_rig(rig_spec, clock)
         try:
