@@ -4,6 +4,7 @@ event subscriber, and the lines a scientist wants to see when states change."""
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn
@@ -13,6 +14,7 @@ from protocols.events import (
     Event,
     Fault,
     InterlockTrip,
+    SafeStopped,
     StateChanged,
     StepFinished,
     StepStarted,
@@ -37,14 +39,19 @@ def _values(values: dict[str, float]) -> str:
 
 
 class ConsoleView:
-    """Subscriber: one progress bar per step, state changes and faults as lines.
+    """Subscriber: one progress bar per step, state changes as lines, and one line per run
+    that ends short: what happened, what the safe stop verified, where the details are.
 
     It renders only from the publishing thread (no auto-refresh thread): rich's lazy imports
-    are not safe to race, and one thread is all a progress display needs.
+    are not safe to race, and one thread is all a progress display needs; :meth:`say` prints
+    from another thread under the same lock.
     """
 
-    def __init__(self, console: Console | None = None):
+    def __init__(self, console: Console | None = None, log_path: Path | None = None):
         self.console = console or Console(stderr=True)
+        self.log_path = log_path
+        self._headline = ""  # the trip or fault waiting for its safe state
+        self._closed = False
         self.progress = Progress(
             TextColumn("[bold]{task.description}"), BarColumn(),
             TextColumn("{task.percentage:>5.1f}%"), TextColumn("ETA {task.fields[eta]}"),
@@ -52,16 +59,35 @@ class ConsoleView:
             auto_refresh=False,
         )
         self._task: TaskID | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # say() may be re-entered by a signal handler
 
     def __enter__(self) -> ConsoleView:
         self.progress.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.progress.stop()
+        self.close()
+
+    def close(self) -> None:
+        """Stop the progress display and show no more events (idempotent)."""
+        self._closed = True
+        if self._lock.acquire(timeout=1.0):
+            try:
+                self.progress.stop()
+            finally:
+                self._lock.release()
+
+    def say(self, text: str) -> None:
+        """Print a line from any thread."""
+        if self._lock.acquire(timeout=1.0):
+            try:
+                self.console.print(text)
+            finally:
+                self._lock.release()
 
     def __call__(self, event: Event) -> None:
+        if self._closed:
+            return
         with self._lock:
             self._handle(event)
             self.progress.refresh()
@@ -86,7 +112,13 @@ class ConsoleView:
         elif isinstance(event, StateChanged) and event.reason and not event.new.finished:
             self.console.print(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}")
         elif isinstance(event, InterlockTrip):
-            self.console.print(f"[bold red]INTERLOCK[/] {event.message}; motion stopped")
+            self._headline = f"[bold red]INTERLOCK[/] {event.message}"
         elif isinstance(event, Fault):
-            self.console.print(f"[bold red]FAULT[/] {event.kind}: {event.message}; "
-                               "motion stopped")
+            self._headline = f"[bold red]FAULT[/] {event.kind}: {event.message}"
+        elif isinstance(event, SafeStopped):
+            head = self._headline or f"[bold yellow]ABORTED[/] {event.state.reason}"
+            self._headline = ""
+            safe = event.state.line()
+            safe = safe if event.state.verified else f"[bold red]{safe}[/]"
+            where = f"; details: {self.log_path}" if self.log_path else ""
+            self.console.print(f"{head}; {safe}{where}", highlight=False, soft_wrap=True)

@@ -40,6 +40,7 @@ from protocols.events import (
     Finished,
     InterlockTrip,
     RunState,
+    SafeStopped,
     StateChanged,
     StepFinished,
     StepStarted,
@@ -81,6 +82,7 @@ class MainWindow(QMainWindow):
         self.last_message: QMessageBox | None = None
         self.close_after_run = False
         self._step_names: dict[int, str] = {}
+        self._trouble: tuple[str, str] | None = None  # (title, text) awaiting its safe state
         self._next_draw = 0.0
         self._last_read_error = ""
         self._build_toolbar()
@@ -361,14 +363,18 @@ class MainWindow(QMainWindow):
             self.log.add(f"{event.new.value}" + (f": {event.reason}" if event.reason else ""))
         elif isinstance(event, InterlockTrip):
             self.banner.trip(f"interlock {event.interlock}: {event.message}")
-            self.log.add(f"INTERLOCK {event.message}; motion stopped", "error")
-            self.message("Interlock tripped", f"{event.message}\n\nAll motion was stopped.")
+            self.log.add(f"INTERLOCK {event.message}", "error")
+            self._trouble = ("Interlock tripped", event.message)
         elif isinstance(event, Fault):
             self.banner.trip(f"fault ({event.kind}): {event.message}")
-            self.log.add(f"FAULT {event.kind}: {event.message}; motion stopped", "error")
-            self.message("Fault: the run stopped",
-                         f"{event.kind}: {event.message}\n\nAll motion was stopped; the data "
-                         "recorded so far is kept.")
+            self.log.add(f"FAULT {event.kind}: {event.message}", "error")
+            self._trouble = ("Fault: the run stopped", f"{event.kind}: {event.message}")
+        elif isinstance(event, SafeStopped):  # the same one line as the CLI's
+            line = event.state.line()
+            self.log.add(line, "warning" if event.state.verified else "error")
+            title, text = self._trouble or ("Run aborted", event.state.reason)
+            self._trouble = None
+            self.message(title, f"{text}\n\n{line}\n\nThe data recorded so far is kept.")
         elif isinstance(event, Finished):
             self.log.add(f"finished: {event.state.value}")
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 
 class Aborted(Exception):
@@ -22,6 +23,10 @@ class RunControl:
         self._resume = threading.Event()
         self._resume.set()
         self.abort_reason = ""
+        #: the abort is a fault (a watchdog), not a person's request: the run ends "failed"
+        self.fault_kind = ""
+        #: wall time (time.monotonic) of the first abort request, or None
+        self.abort_time: float | None = None
 
     def pause(self) -> None:
         self._pause.set()
@@ -34,8 +39,15 @@ class RunControl:
     def abort(self, reason: str = "abort requested") -> None:
         if not self._abort.is_set():
             self.abort_reason = reason
+            self.abort_time = time.monotonic()
         self._abort.set()
         self._resume.set()
+
+    def fail(self, kind: str, reason: str) -> None:
+        """End the run as a fault of ``kind`` (e.g. the watchdog's), at the next block."""
+        if not self._abort.is_set():
+            self.fault_kind = kind
+        self.abort(reason)
 
     @property
     def pause_requested(self) -> bool:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from instrument.contact import FloatArray
+from protocols.safestop import SafeState
 
 log = logging.getLogger(__name__)
 
@@ -114,10 +115,20 @@ class InterlockTrip(Event):
 
 @dataclass(frozen=True)
 class Fault(Event):
-    """A fault ended the run (``kind``: the error's type name); motion was stopped first."""
+    """A fault ended the run (``kind``: the error's type name); the stop was sent first, and a
+    :class:`SafeStopped` follows with what was verified."""
 
     kind: str
     message: str
+
+
+@dataclass(frozen=True)
+class SafeStopped(Event):
+    """The run ended short: motion was stopped and read back, and the sample put in its safe
+    state where the rig file asks; ``state`` says what was verified (its ``line()`` is what
+    people see)."""
+
+    state: SafeState
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ from protocols.events import (
     Fault,
     Finished,
     InterlockTrip,
+    SafeStopped,
     Samples,
     StateChanged,
     StepFinished,
@@ -53,6 +54,8 @@ class Recorder:
             meta.setdefault("faults", []).append({"t": event.t, "kind": event.kind,
                                                   "message": event.message})
             self.run.write_metadata(meta)
+        elif isinstance(event, SafeStopped):
+            self.run.update(safe_state=event.state.as_dict())
         elif isinstance(event, Finished):
             self._close_writer({"status": event.state.value})
             self.run.update(status=event.state.value, reason=event.reason, finished=event.t)

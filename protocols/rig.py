@@ -19,6 +19,7 @@ from instrument.loadcell import ForceSensor
 from instrument.rheometer import Rheometer
 from instrument.stage import Stage
 from protocols.interlocks import Interlock
+from protocols.safestop import SafeState, stop_rheometer, stop_stage
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +38,13 @@ class CompressionLimits(Config):
                                     help="for moves away from the sphere", display="mm/s"))
     acceleration: float = param(Field("acceleration", "m/s^2", 4e-3, 0.0, 10e-3, lo_open=True,
                                       display="mm/s^2"))
+    retract_on_fault: float = param(Field(
+        "retract_on_fault", "m", 2e-3, 0.0, 20e-3, display="mm",
+        help="after a fault, abort or trip: retract the plate this far back from first touch "
+             "(0: only stop)"))
+    watchdog: float = param(Field("watchdog", "s", 30.0, 0.0, 3600.0,
+                                  help="fault a run that records no data for this long "
+                                       "(wall time; 0: off)"))
 
     def guards(self) -> tuple[tuple[str, float, str], ...]:
         """(what, limit, SI unit) of each interlock, for people."""
@@ -54,6 +62,12 @@ class ShearLimits(Config):
                                           lo_open=True))
     max_overlap: float = param(Field("max_overlap", "m", 1.2e-3, 0.0, 10e-3, lo_open=True,
                                      help="below the touch gap", display="mm"))
+    lift_on_fault: float = param(Field(
+        "lift_on_fault", "m", 2e-3, 0.0, 50e-3, display="mm",
+        help="after a fault, abort or trip: raise the gap by this much (0: only stop)"))
+    watchdog: float = param(Field("watchdog", "s", 30.0, 0.0, 3600.0,
+                                  help="fault a run that records no data for this long "
+                                       "(wall time; 0: off)"))
 
     def guards(self) -> tuple[tuple[str, float, str], ...]:
         """(what, limit, SI unit) of each interlock, for people."""
@@ -77,6 +91,8 @@ class CompressionRig:
     simulated: bool = False
     close_hooks: list[Callable[[], None]] = field(default_factory=list)
     monitoring: bool = field(default=False, init=False)
+    #: stage position of first touch, once a step knows it: where a safe stop retracts from
+    first_touch: float | None = field(default=None, init=False)
 
     kind = "compression"
 
@@ -145,6 +161,14 @@ class CompressionRig:
         except Exception:
             log.exception("stage stop failed")
 
+    def safe_stop(self, reason: str, budget: float = 15.0) -> SafeState:
+        """Stop, read back, retract the plate ``limits.retract_on_fault`` from first touch;
+        returns what was verified. Never raises; every call is bounded (``budget`` s)."""
+        limits = self.limits
+        axis = stop_stage(self.stage, self.clock, limits.retract_on_fault, self.first_touch,
+                          limits.fast_speed, limits.acceleration, budget)
+        return SafeState(reason, [axis])
+
     def close(self) -> None:
         self.stop_all()
         _run_all((self.force.stop, self.force.close, self.stage.close, *self.close_hooks))
@@ -199,6 +223,12 @@ class ShearRig:
             self.rheometer.stop()
         except Exception:
             log.exception("rheometer stop failed")
+
+    def safe_stop(self, reason: str, budget: float = 15.0) -> SafeState:
+        """Stop the arm, read it back, lift it ``limits.lift_on_fault``; returns what was
+        verified. Never raises; every call is bounded (``budget`` s)."""
+        axis = stop_rheometer(self.rheometer, self.clock, self.limits.lift_on_fault, budget)
+        return SafeState(reason, [axis])
 
     def close(self) -> None:
         self.stop_all()

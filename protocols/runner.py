@@ -1,8 +1,10 @@
 """The runner: executes a protocol's steps on a rig and tells the event stream everything.
 
-Order on the way out of any trouble is fixed: stop all motion, then record, then report.
-Abort (from the CLI, the GUI or a test) takes effect at the next sample block; pause at the
-next checkpoint; an interlock trip stops motion within one sample and ends the run.
+Order on the way out of any trouble is fixed: stop all motion and read it back (the rig's
+safe stop, ADR 0070), then record, then report. Abort (from the CLI, the GUI or a test) takes
+effect at the next sample block; pause at the next checkpoint; an interlock trip stops motion
+within one sample and ends the run; a watchdog faults a run that records no data for too
+long.
 """
 
 from __future__ import annotations
@@ -19,12 +21,15 @@ from protocols.events import (
     Fault,
     Finished,
     RunState,
+    SafeStopped,
     StateChanged,
     StepFinished,
     StepStarted,
 )
 from protocols.rig import Rig
+from protocols.safestop import SafeState
 from protocols.spec import ProtocolSpec
+from protocols.watchdog import Watchdog
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +62,10 @@ class Runner:
             for i, table in self.results.items() if i < len(protocol.steps)}
         self.state = RunState.IDLE
         self.reason = ""
+        #: set once the run is on its way out (the safe stop has begun)
+        self.ending = False
+        #: what the safe stop verified, if the run ended short
+        self.safe_state: SafeState | None = None
 
     def _set_state(self, new: RunState, reason: str = "") -> None:
         old, self.state = self.state, new
@@ -64,6 +73,16 @@ class Runner:
 
     def run(self) -> RunState:
         """Execute every step not yet completed; returns the final state."""
+        watchdog = Watchdog(self.control, self.rig.limits.watchdog)
+        unsubscribe = self.bus.subscribe(watchdog)
+        watchdog.start()
+        try:
+            return self._run()
+        finally:
+            watchdog.stop()
+            unsubscribe()
+
+    def _run(self) -> RunState:
         clock = self.rig.clock
         self._set_state(RunState.RUNNING)
         for index, step in enumerate(self.protocol.steps):
@@ -76,20 +95,22 @@ class Runner:
                                              step.params.to_table(), step.definition.columns))
                 outcome = step.definition.run(ctx, step.params)
             except Aborted as exc:
-                return self._end(index, step.name, RunState.ABORTED, "aborted",
-                                 str(exc) or "abort requested")
+                reason = str(exc) or "abort requested"
+                if self.control.fault_kind:  # the watchdog: a fault, not a person's abort
+                    return self._end(index, step.name, RunState.FAILED, "failed", reason,
+                                     Fault(clock.now(), self.control.fault_kind, reason))
+                return self._end(index, step.name, RunState.ABORTED, "aborted", reason)
             except InterlockTripped as exc:
                 return self._end(index, step.name, RunState.ABORTED, "aborted", str(exc))
             except GelrigError as exc:
-                self.rig.stop_all()
-                self.bus.publish(Fault(clock.now(), type(exc).__name__, str(exc)))
                 return self._end(index, step.name, RunState.FAILED, "failed",
-                                 f"{type(exc).__name__}: {exc}")
+                                 f"{type(exc).__name__}: {exc}",
+                                 Fault(clock.now(), type(exc).__name__, str(exc)))
             except BaseException as exc:  # Ctrl-C outside our handlers, a bug: stop first
-                self.rig.stop_all()
-                self.bus.publish(Fault(clock.now(), type(exc).__name__, str(exc)))
+                log.error("step %d (%s) raised", index, step.name, exc_info=exc)
                 self._end(index, step.name, RunState.FAILED, "failed",
-                          f"{type(exc).__name__}: {exc}")
+                          f"{type(exc).__name__}: {exc}",
+                          Fault(clock.now(), type(exc).__name__, str(exc)))
                 raise
             results = outcome.as_dict()
             self.outcomes[index] = outcome
@@ -100,10 +121,21 @@ class Runner:
         self.bus.publish(Finished(clock.now(), RunState.COMPLETED, self.reason))
         return self.state
 
-    def _end(self, index: int, name: str, state: RunState, status: str, reason: str) -> RunState:
-        self.rig.stop_all()
+    def _end(self, index: int, name: str, state: RunState, status: str, reason: str,
+             fault: Fault | None = None) -> RunState:
+        """The way out of a run that ended short: safe stop first (stop, read back, safe
+        position), then the fault, the safe state, the step's end and the run's."""
+        self.ending = True
+        if fault is not None:
+            log.error("run %s: %s", status, reason)
+        safe = self.rig.safe_stop(reason)
+        self.safe_state = safe
+        log.log(logging.INFO if safe.verified else logging.ERROR, "safe stop: %s", safe.line())
         clock = self.rig.clock
         self.reason = reason
+        if fault is not None:
+            self.bus.publish(fault)
+        self.bus.publish(SafeStopped(clock.now(), safe))
         self.bus.publish(StepFinished(clock.now(), index, name, status, {"reason": reason}))
         self._set_state(state, reason)
         self.bus.publish(Finished(clock.now(), state, reason))

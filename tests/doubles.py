@@ -13,6 +13,7 @@ real drivers; these check the step logic in milliseconds.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,12 +21,49 @@ from numpy.typing import ArrayLike
 
 from instrument.clock import VirtualClock
 from instrument.contact import FloatArray, Material, hertz_prefactor
-from instrument.errors import InstrumentTimeout, LimitError
+from instrument.errors import Disconnected, InstrumentTimeout, LimitError
 from instrument.identity import Identity
 from instrument.loadcell import ForceBlock, LoadCellChain
 from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
 from instrument.stage import StageConfig, StageStatus
 from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
+
+#: Longest a frozen fake blocks a call (s, wall): every wait in the tests is bounded.
+FREEZE_LIMIT = 30.0
+
+
+class Faults:
+    """What a test makes a fake do wrong: ``freeze()`` makes every call block (as a frozen
+    server does) until ``thaw()`` or :data:`FREEZE_LIMIT`; ``unreachable`` makes every call
+    raise Disconnected; ``fail_stop`` makes only the stop raise; ``fail_at`` makes calls raise
+    Disconnected from that clock time on."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.unreachable = False
+        self.fail_stop = False
+        self.fail_at: float | None = None
+        self.frozen = threading.Event()
+        self.blocked = threading.Event()  # set while a call is blocked by a freeze
+        self._thawed = threading.Event()
+
+    def freeze(self) -> None:
+        self._thawed.clear()
+        self.frozen.set()
+
+    def thaw(self) -> None:
+        self.frozen.clear()
+        self._thawed.set()
+
+    def gate(self, now: float, stop: bool = False) -> None:
+        """Called first by every call of the fake."""
+        if self.frozen.is_set():
+            self.blocked.set()
+            self._thawed.wait(FREEZE_LIMIT)
+            self.blocked.clear()
+        if self.unreachable or (stop and self.fail_stop) or (
+                self.fail_at is not None and now >= self.fail_at):
+            raise Disconnected(f"{self.name}: link lost")
 
 
 @dataclass
@@ -57,6 +95,7 @@ class FakeStage:
         self.homed = homed
         self.velocity = 1e-3
         self.calls: list[str] = []
+        self.faults = Faults("fake stage")
         self._legs: list[_Leg] = [_Leg(-1.0, position, position, 1.0)]
 
     # the contract
@@ -67,6 +106,7 @@ class FakeStage:
         self.calls.append("enable")
 
     def home(self, wait: bool = True, timeout: float | None = None) -> None:
+        self.faults.gate(self.clock.now())
         self.calls.append("home")
         self._go(0.0)
         if wait:
@@ -74,12 +114,14 @@ class FakeStage:
         self.homed = True
 
     def set_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
+        self.faults.gate(self.clock.now())
         self.config.check_velocity(max_m_s, accel_m_s2)
         if max_m_s > self.config.max_velocity_m_s:
             raise LimitError(f"velocity {max_m_s * 1e3:g} mm/s above the stage's cap")
         self.velocity = max_m_s
 
     def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
+        self.faults.gate(self.clock.now())
         self.config.check_position(position_m)
         self.calls.append(f"move_to {position_m:.6g}")
         self._go(position_m)
@@ -94,10 +136,12 @@ class FakeStage:
         self._go(end)
 
     def stop(self, immediate: bool = True) -> None:
+        self.faults.gate(self.clock.now(), stop=True)
         self.calls.append("stop")
         self._go(self.position())
 
     def position(self) -> float:
+        self.faults.gate(self.clock.now())
         return float(self.positions_at(self.clock.now()))
 
     def status(self) -> StageStatus:
@@ -105,6 +149,7 @@ class FakeStage:
         return StageStatus(0, moving, False, self.homed, True, True, False, False, False, False)
 
     def is_moving(self) -> bool:
+        self.faults.gate(self.clock.now())
         return self.clock.now() < self._legs[-1].t1
 
     def wait_until_stopped(self, timeout: float | None = None) -> None:
@@ -132,6 +177,7 @@ class FakeStage:
         return out
 
     def _go(self, target: float) -> None:
+        self.faults.gate(self.clock.now())
         now = self.clock.now()
         here = float(self.positions_at(now))
         self._legs.append(_Leg(now, here, target, self.velocity))
@@ -159,6 +205,7 @@ class FakeForceSensor:
         self.rng = np.random.default_rng(seed)
         self.zero = self.chain.offset
         self.calls: list[str] = []
+        self.faults = Faults("fake force sensor")
         self._rate = 0.0
         self._next = 0  # index of the next sample to read
         self._t0 = 0.0
@@ -188,6 +235,7 @@ class FakeForceSensor:
         return c * modulus * delta**1.5
 
     def read_block(self, n: int | None = None, timeout: float | None = None) -> ForceBlock:
+        self.faults.gate(self.clock.now())
         if self._rate <= 0:
             raise InstrumentTimeout("fake force sensor: not started")
         available = math.floor((self.clock.now() - self._t0) * self._rate)
@@ -248,6 +296,7 @@ class FakeRheometer:
     g: float = 4e3
     mu: float = 5e-3
     calls: list[str] = field(default_factory=list)
+    faults: Faults = field(default_factory=lambda: Faults("fake rheometer"))
     _gap: float = 10e-3
     _referenced: bool = False
     _speed: float = 0.0
@@ -260,10 +309,11 @@ class FakeRheometer:
     def identify(self) -> Identity:
         return Identity("tests", "fake rheometer", "1")
 
-    def _advance(self) -> None:
+    def _advance(self, stop: bool = False) -> None:
         """Bring the arm to the clock's time, streaming points on the way (every state change
         calls this first, so the points see the state that held when they were taken)."""
         now = self.clock.now()
+        self.faults.gate(now, stop)
         omega = self._speed / self.config.arm
         while self._stream is not None and self._last_point + self._stream <= now:
             self._last_point += self._stream
@@ -294,6 +344,7 @@ class FakeRheometer:
         self._gap = gap
 
     def gap(self) -> float:
+        self.faults.gate(self.clock.now())
         return self._gap
 
     def rotate(self, speed: float) -> None:
@@ -304,7 +355,7 @@ class FakeRheometer:
         self._speed = speed
 
     def stop(self) -> None:
-        self._advance()
+        self._advance(stop=True)
         self.calls.append("stop")
         self._speed = 0.0
 

@@ -142,6 +142,7 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
                 raise InstrumentError(f"first-touch fit failed on approach {attempt + 1}")
             estimates.append(touch)
             crossings.append(z_cross)
+            rig.first_touch = touch  # where a safe stop retracts from
             stage.set_velocity(limits.fast_speed, limits.acceleration)
             stage.move_to(max(touch - p.retract, p.start), wait=False)
             rec.until_stopped()

@@ -113,6 +113,7 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             if found is None:
                 raise GelrigError("ramp_hold needs first_touch, or a contact search before it")
             touch = found.first_touch_m
+        rig.first_touch = touch  # where a safe stop retracts from
         depth, speed = p.depth, p.speed
         ctx.interlocks = rig.interlocks(overlap=True)
         if not stage.status().homed:  # positions mean nothing before homing

@@ -58,7 +58,7 @@ def test_every_config_field_carries_its_spec_and_defaults_are_valid(cls: type[Co
     # unknown keys list what is allowed
     (CompressionLimits, {"max_forse": 1},
      "rig.toml: [limits] max_forse = 1: unknown field; allowed: acceleration, fast_speed, "
-     "max_force, max_overlap"),
+     "max_force, max_overlap, retract_on_fault, watchdog"),
     # a check across fields names the file too
     (StageConfig, {"min_position": "5 mm", "max_position": "4 mm"},
      "rig.toml: [stage] min_position = 0.005: must be < max_position (0.004 m)"),
