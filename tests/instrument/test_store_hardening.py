@@ -157,7 +157,7 @@ def test_fifo_run_json_names_it(run_copy):
 
 def test_export_keeps_the_good_steps_before_naming_the_damaged_one(run_copy):
     _truncate(run_copy)
-    code, out, err = gelrig("export", run_copy, "--csv")
+    code, _, err = gelrig("export", run_copy, "--csv")
     assert code == 2 and "01_ramp_and_hold.h5" in err and "is truncated" in err
     assert (run_copy / "csv" / "00_contact_search.csv").stat().st_size > 1000
 
