@@ -28,7 +28,7 @@ import numpy as np
 from instrument import paper
 from instrument.analysis import RelaxationFit
 from instrument.contact import FloatArray
-from instrument.errors import ConfigError, GelrigError
+from instrument.errors import ConfigError
 from instrument.hold_analysis import HoldAnalysis, NoHold, analyse_hold
 from instrument.ladder_analysis import (
     LadderModel,
@@ -139,16 +139,11 @@ def load_steps(run: RunDirectory, meta: Mapping[str, Any], problems: list[str]) 
             continue
         kind, name = rec.get("kind", kind), rec.get("name", name)
         status = str(rec.get("status", "?"))
-        path = run.path / str(rec.get("file", ""))
-        if not path.is_file():
+        path = run.step_file(rec)  # crafted paths, damaged files: ConfigError, one line
+        if not path.exists() and not path.is_symlink():
             problems.append(f"step {i} ({name}): data file {rec.get('file')} is missing")
             continue
-        try:
-            columns = read_step(path)
-        except (OSError, KeyError, ValueError, GelrigError) as exc:
-            problems.append(f"step {i} ({name}): data file {rec.get('file')} cannot be read "
-                            f"({exc})")
-            continue
+        columns = read_step(path)
         n = len(next(iter(columns.values()))) if columns else 0
         if status != "completed":
             problems.append(f"step {i} ({name}) is {status}, not completed: analysing the "
@@ -294,10 +289,13 @@ def analyze_run(
     run = RunDirectory(run_dir)
     meta = run.read_metadata()
     out = Path(out_dir) if out_dir is not None else run.path / "analysis"
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "is a file, not a folder; name a folder")
     out.mkdir(parents=True, exist_ok=True)
     problems: list[str] = []
     steps = load_steps(run, meta, problems)
-    kind = str((meta.get("protocol") or {}).get("protocol", {}).get("rig", "?"))
+    head = (meta.get("protocol") or {}).get("protocol")
+    kind = str(head.get("rig", "?")) if isinstance(head, dict) else "?"
     arm = _arm(meta, problems) if any(s.kind == "speed_ladder" for s in steps) else paper.ARM
     ctx = _Context(run, out, meta, problems, [], [],
                    FitSetup(r1, r2, arm, terms=terms, fit_geometry=fit_geometry), fit_model)

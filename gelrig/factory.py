@@ -11,13 +11,17 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Callable
+from typing import TypeVar
 
 from drivers.mcr501.driver import MCR501
 from instrument.clock import Clock
 from instrument.contact import FloatArray
+from instrument.errors import ConfigError, InstrumentError
 from instrument.identity import Identity
 from protocols.rig import CompressionRig, Rig, ShearRig
-from protocols.rigfile import CompressionRigSpec, RigSpec, ShearRigSpec
+from protocols.rigfile import CompressionRigSpec, Connection, RigSpec, ShearRigSpec
+
+T = TypeVar("T")
 
 log = logging.getLogger(__name__)
 
@@ -32,6 +36,20 @@ def build_rig(spec: RigSpec, clock: Clock) -> Rig:
 def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:
     """An instrument's entry in run.json: who it is, and how it was reached."""
     return {**identity.as_dict(), "transport": transport, "address": address}
+
+
+def _connect(entry: Connection, name: str, source: str, what: str,
+             connect: Callable[[], T]) -> T:
+    """Run ``connect``; an instrument that cannot be reached becomes a ConfigError naming the
+    rig file field that holds its address and what was tried (exit code 2)."""
+    try:
+        return connect()
+    except InstrumentError as exc:
+        field = f"[{name}] address" if entry.address else f"[{name}] transport"
+        value = entry.address or entry.transport
+        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(field, value, f"cannot connect: tried {what} ({detail}); check the "
+                          "address, the cable and that the instrument is on", source) from None
 
 
 def _close_all(closers: list[Callable[[], None]]) -> None:
@@ -68,9 +86,11 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
             driver = MCR501(entry.address, clock, entry.config, backend=entry.backend)
             where = entry.address
         closers.insert(0, driver.close)
-        driver.open()
+        tried = "the simulator" if entry.simulated else f"VISA {where} ({entry.backend})"
+        identity = _connect(entry, "rheometer", spec.source, tried,
+                            lambda: (driver.open(), driver.identify())[1])
         identities: dict[str, object] = {
-            "rheometer": _record(driver.identify(), entry.transport, where)}
+            "rheometer": _record(identity, entry.transport, where)}
     except BaseException:
         _close_all(closers)
         raise
@@ -80,7 +100,6 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
 def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
     from drivers.kdc101 import KDC101
     from drivers.usb6001.sensor import Usb6001ForceSensor
-    from instrument.errors import ConfigError
     from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
     from simulators.usb6001.rig import PLATES, SIM_OFFSET, compression_daq
     from simulators.usb6001.server import start_server
@@ -100,8 +119,10 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
             address = stage_entry.address
         stage = KDC101(address, stage_entry.config, clock)
         closers.append(stage.close)
-        stage.open()
-        identities["stage"] = _record(stage.identify(), stage_entry.transport, address)
+        tried = "the simulator" if stage_entry.simulated else f"serial port {address}"
+        identity = _connect(stage_entry, "stage", spec.source, tried,
+                            lambda: (stage.open(), stage.identify())[1])
+        identities["stage"] = _record(identity, stage_entry.transport, address)
         if force_entry.simulated:
             if not stage_entry.simulated:
                 raise ConfigError("force.transport", "simulator", "a simulated force needs "
@@ -124,8 +145,12 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
             force_address = force_entry.address if force_entry.transport == "grpc" else "local"
         force = Usb6001ForceSensor(force_address, force_entry.config, chain, clock)
         closers.append(force.close)
-        force.open()
-        identities["force"] = _record(force.identify(), force_entry.transport, force_address)
+        tried = {"grpc": f"the NI gRPC Device Server at {force_address}",
+                 "nidaqmx": "NI-DAQmx on this computer"}.get(force_entry.transport,
+                                                             "the simulator")
+        identity = _connect(force_entry, "force", spec.source, tried,
+                            lambda: (force.open(), force.identify())[1])
+        identities["force"] = _record(identity, force_entry.transport, force_address)
     except BaseException:
         _close_all(closers)
         raise

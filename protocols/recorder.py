@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import asdict
 
-from instrument.store import RunDirectory, StepWriter
+from instrument.store import RunDirectory, StepWriter, StorageFault
 from protocols.events import (
     Event,
     Fault,
@@ -22,17 +23,35 @@ class Recorder:
     """Writes every step's samples and the run's story to a RunDirectory.
 
     Subscribe it as *critical*: a failure to write (disk full) must stop the run rather than
-    let it go on without recording.
+    let it go on without recording. A storage fault (disk full) raised while samples arrive
+    reaches the runner, which stops motion and ends the run failed; one found when a step's
+    file is closed is recorded and raised at the next step, and a run that then "completes"
+    is recorded as failed (``storage_fault`` in run.json holds the one line).
     """
 
     def __init__(self, run: RunDirectory):
         self.run = run
         self._writer: StepWriter | None = None
         self._index: int | None = None
+        #: the first storage fault's one line, once there was one
+        self.fault: str | None = None
+        self._rows = 0
 
     def __call__(self, event: Event) -> None:
+        try:
+            self._handle(event)
+        except StorageFault as exc:
+            if self.fault is None:
+                self.fault = str(exc)
+                with contextlib.suppress(StorageFault):
+                    self.run.update(storage_fault=self.fault)
+            raise
+
+    def _handle(self, event: Event) -> None:
         if isinstance(event, StepStarted):
             self._close_writer()
+            if self.fault is not None:
+                raise StorageFault(self.fault)
             self._writer = self.run.open_step(event.index, event.name, event.kind,
                                               event.columns, event.params, event.t)
             self._index = event.index
@@ -40,8 +59,16 @@ class Recorder:
             if self._writer is not None and event.index == self._index:
                 self._writer.append(event.data)
         elif isinstance(event, StepFinished):
-            rows = self._close_writer({"status": event.status})
-            self.run.finish_step(event.index, event.status, rows, event.t, event.results)
+            status, results = event.status, dict(event.results)
+            try:
+                rows = self._close_writer({"status": event.status})
+            except StorageFault as exc:  # raised at the next step: the runner stops there
+                self.fault = self.fault or str(exc)
+                rows = self._rows
+                status, results = "failed", {**results, "reason": str(exc)}
+            self.run.finish_step(event.index, status, rows, event.t, results)
+            if self.fault is not None:
+                self.run.update(storage_fault=self.fault)
         elif isinstance(event, StateChanged):
             self.run.update(status=event.new.value)
         elif isinstance(event, InterlockTrip):
@@ -57,14 +84,20 @@ class Recorder:
         elif isinstance(event, SafeStopped):
             self.run.update(safe_state=event.state.as_dict())
         elif isinstance(event, Finished):
-            self._close_writer({"status": event.state.value})
-            self.run.update(status=event.state.value, reason=event.reason, finished=event.t)
+            with contextlib.suppress(StorageFault):
+                self._close_writer({"status": event.state.value})
+            self.run.release_space()
+            if self.fault is not None and event.state.value == "completed":
+                self.run.update(status="failed", reason=self.fault, finished=event.t)
+            else:
+                self.run.update(status=event.state.value, reason=event.reason, finished=event.t)
 
     def _close_writer(self, attrs: dict[str, str] | None = None) -> int:
-        rows = 0
-        if self._writer is not None:
-            self._writer.close(attrs)
-            rows = self._writer.rows
-        self._writer = None
-        self._index = None
-        return rows
+        writer, self._writer, self._index = self._writer, None, None
+        if writer is None:
+            return 0
+        try:
+            writer.close(attrs)
+        finally:
+            self._rows = writer.rows  # what the file keeps, also after a fault
+        return writer.rows

@@ -10,6 +10,7 @@ simulated, so gelrig runs on a fresh machine with no hardware.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,7 +196,22 @@ def _connection(table: dict[str, Any], name: str, source: str) -> tuple[str, str
         table.pop("address", ""), where)
     if transport not in ("simulator", "nidaqmx") and not address:
         raise where.error("address", "missing", f"required for transport {transport!r}")
+    if transport == "grpc":
+        _check_grpc(address, where)
     return transport, address
+
+
+_GRPC = re.compile(r"(?:grpc://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[^:/]*)",
+                   re.IGNORECASE)
+
+
+def _check_grpc(address: str, where: Where) -> None:
+    """A gRPC address is grpc://HOST:PORT with PORT in 1..65535 (checked before connecting)."""
+    match = _GRPC.fullmatch(address.strip())
+    port = match.group("port") if match else ""
+    if not (match and port.isdigit() and 1 <= int(port) <= 65535):
+        raise where.error("address", address, "allowed: grpc://HOST:PORT with PORT a number "
+                          "1..65535, e.g. grpc://daq-pc:31763")
 
 
 def _truth(cls: type[CompressionTruth] | type[ShearTruth], table: dict[str, Any], source: str

@@ -59,6 +59,19 @@ def _rate(text: str) -> tuple[str, float]:
             raise speed_error from None
 
 
+#: Most samples a model may compute: 8 arrays of float64 stay under ~6 GB.
+MAX_SAMPLES = 100_000_000
+
+
+def check_samples(duration: float, dt: float, what: str) -> None:
+    """Refuse a --dt whose arrays would not fit comfortably in memory, before allocating."""
+    n = duration / dt
+    if not n <= MAX_SAMPLES:  # also catches inf and nan
+        raise ConfigError("--dt", dt, f"gives {n:.3g} samples over the {what} "
+                          f"({duration:.4g} s); at most {MAX_SAMPLES:.0e} are allowed: use "
+                          f"--dt >= {duration / MAX_SAMPLES:.3g} s")
+
+
 def _material(args: argparse.Namespace) -> Material:
     from instrument.contact import Material
 
@@ -73,6 +86,7 @@ def run_compression(args: argparse.Namespace) -> int:
     speed = value if kind == "speed" else value * 2.0 * args.radius
     if args.depth >= args.radius:
         raise ConfigError("--depth", args.depth, f"must be < --radius ({args.radius:g} m)")
+    check_samples(args.depth / speed + args.hold, args.dt, "ramp and hold")
     record = ramp_hold(args.radius, args.depth, speed, args.hold, _material(args), dt=args.dt)
     path = write_columns(args.out, {"t_s": record.t, "delta_m": record.delta,
                                     "force_N": record.force})
@@ -90,6 +104,9 @@ def run_shear(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         option = f"--{exc.field.lower().replace('_', '-')}"
         raise ConfigError(option, exc.value, exc.allowed) from None
+    if args.dt is not None:
+        travel = 2 * (geometry.psi0 + args.margin)
+        check_samples(travel / args.speed, args.dt, "pass")
     sp = shear_pass(geometry, _material(args), args.speed, args.mu, args.dt, args.margin)
     path = write_columns(args.out, {"t_s": sp.t, "psi_m": sp.psi, "delta_m": sp.delta,
                                     "f_perp_N": sp.f_perp, "f_h_N": sp.f_h, "f_v_N": sp.f_v})

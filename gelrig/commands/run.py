@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -34,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     resume = sub.add_parser("resume", help="continue a run from its last completed step")
     resume.add_argument("run_dir", metavar="RUN_DIR")
     resume.add_argument("--clock", default=None, metavar="real|virtual|paced:K")
+    resume.add_argument("--out", default=None, metavar="NEW_DIR",
+                        help="continue into a new folder (another disk): run.json and the step "
+                             "files are copied there first")
     resume.set_defaults(handler=cmd_resume)
 
     export = sub.add_parser("export", help="write a run's data as CSV")
@@ -103,20 +108,39 @@ def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from gelrig.session import default_run_dir, execute, metadata
-    from instrument.store import RunDirectory
+    from instrument.store import RunDirectory, check_out_dir
 
     protocol = resolve_protocol(args.protocol)
     rig = resolve_rig(args.rig, protocol)
+    out = Path(args.out) if args.out else default_run_dir(protocol)
+    check_out_dir(out)
     failed = print_plan(protocol, rig)
     if failed:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
     clock, spec = _clock(args.clock, rig)
-    out = Path(args.out) if args.out else default_run_dir(protocol)
     run = RunDirectory.create(out, metadata(protocol, rig, spec))
-    print(f"\nrecording to {out.resolve()} ({spec} clock)")
-    state, runner = execute(protocol, rig, clock, run)
-    summarise(run, state, runner.reason)
-    return EXIT.get(state.value, 1)
+    with run.lock():
+        print(f"\nrecording to {out.resolve()} ({spec} clock)")
+        try:
+            state, runner = execute(protocol, rig, clock, run)
+        except ConfigError:  # e.g. an instrument that cannot be reached: nothing recorded
+            if run.read_metadata().get("status") == "created":
+                run.discard_empty()
+            raise
+        return _finish(run, state.value, runner.reason)
+
+
+def _finish(run: RunDirectory, state: str, reason: str) -> int:
+    """Summarise; the exit code follows run.json's final status (a storage fault found while
+    closing the last step turns a completed run into a failed one)."""
+    meta = run.read_metadata()
+    status = str(meta.get("status", state))
+    summarise(run, status, str(meta.get("reason") or reason))
+    fault = meta.get("storage_fault")
+    if fault:
+        print(f"gelrig: {fault}; the run is marked failed. Continue it elsewhere with: "
+              f"gelrig resume {run.path} --out NEW_DIR", file=sys.stderr)
+    return EXIT.get(status, 1)
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
@@ -125,22 +149,33 @@ def cmd_resume(args: argparse.Namespace) -> int:
     from protocols.rigfile import parse_rig
     from protocols.spec import parse_protocol
 
-    run = RunDirectory(args.run_dir)
-    meta = run.read_metadata()
+    source = RunDirectory(args.run_dir)
+    meta = source.read_metadata()
     if meta.get("status") == "completed":
-        print(f"{run.path} already completed; nothing to resume")
+        print(f"{source.path} already completed; nothing to resume")
         return 0
+    for key in ("protocol", "rig"):
+        if not isinstance(meta.get(key), dict):
+            raise ConfigError(key, meta.get(key, "missing"), "run.json must hold the "
+                              f"{key} table to resume", str(source.meta_path))
     protocol = parse_protocol(meta["protocol"], meta.get("protocol_file", "<run.json>"))
     rig = parse_rig(meta["rig"], meta.get("rig_file", "<run.json>"))
     clock, spec = _clock(args.clock or meta.get("clock"), rig)
-    archived = run.archive_incomplete()
-    completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
-    print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
-          + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
-    run.update(resumed=[*meta.get("resumed", []), spec])
-    state, runner = execute(protocol, rig, clock, run, completed)
-    summarise(run, state, runner.reason)
-    return EXIT.get(state.value, 1)
+    with contextlib.ExitStack() as held:
+        held.enter_context(source.lock())
+        run = source
+        if args.out:
+            run = source.copy_to(args.out)
+            held.enter_context(run.lock())
+            print(f"copied {source.path} to {run.path}")
+        archived = run.archive_incomplete()
+        completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+        print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
+              + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
+        run.reserve_space()
+        run.update(resumed=[*meta.get("resumed", []), spec], storage_fault=None)
+        state, runner = execute(protocol, rig, clock, run, completed)
+        return _finish(run, state.value, runner.reason)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -150,13 +185,20 @@ def cmd_export(args: argparse.Namespace) -> int:
     run = RunDirectory(args.run_dir)
     meta = run.read_metadata()
     out = Path(args.out) if args.out else run.path / "csv"
-    written = []
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "is a file, not a folder; name a folder")
+    written, damaged = [], []
     for step in [*meta["steps"], *meta.get("interrupted_steps", [])]:
-        path = run.path / step["file"]
-        if not path.exists():
+        path = run.step_file(step)
+        if not path.exists() and not path.is_symlink():
             print(f"step {step['index']} ({step['name']}): {step['file']} is missing")
             continue
-        data = read_step(path)
+        try:
+            data = read_step(path)
+        except ConfigError as exc:
+            damaged.append(exc)
+            print(f"step {step['index']} ({step['name']}): skipped, {exc}")
+            continue
         target = out / (Path(step["file"]).stem + ".csv")
         write_columns(target, data)
         written.append(target)
@@ -164,16 +206,19 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"{target} ({n} rows, {step['status']})")
     (out / "run.json").write_text(json.dumps(meta, indent=2))
     print(f"exported {len(written)} step(s) to {out.resolve()}")
+    if damaged:
+        raise damaged[0]
     return 0
 
 
-def summarise(run: RunDirectory, state: RunState, reason: str) -> None:
+def summarise(run: RunDirectory, state: RunState | str, reason: str) -> None:
     meta = run.read_metadata()
-    print(f"\nrun {state.value}: {reason}")
+    print(f"\nrun {getattr(state, 'value', state)}: {reason}")
     for step in meta["steps"]:
         results = step.get("results") or {}
         brief = {k: v for k, v in results.items() if isinstance(v, int | float | str)}
-        print(f"  {step['index']}. {step['name']}: {step['status']}, {step['samples']} samples"
+        samples = step.get('samples', 0)
+        print(f"  {step['index']}. {step['name']}: {step['status']}, {samples} samples"
               + (f"; {_brief(brief)}" if brief else ""))
         for fit in results.get("fits", []):
             if "G_e" in fit:
