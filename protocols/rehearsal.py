@@ -180,7 +180,7 @@ class Counter:
             figures.status, figures.finished = event.status, event.t
             self.current = None
         elif isinstance(event, InterlockTrip):
-            self._hit(event.t, f"{event.name} interlock: {event.message}")
+            self._hit(event.t, f"{event.interlock} interlock: {event.message}")
         elif isinstance(event, Fault):
             self._hit(event.t, f"{event.kind}: {event.message}")
         elif isinstance(event, StateChanged) and math.isnan(self.start):
