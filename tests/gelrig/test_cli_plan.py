@@ -80,7 +80,7 @@ def one_line(err: str) -> str:
 def test_probe_speed_above_the_stage_cap(tmp_path, capsys):
     p = protocol(tmp_path, "compression", SEARCH.format(speed="1.31 mm/s"), HOLD)
     r = rig(tmp_path, "compression", ('max_velocity = "2.3 mm/s"', 'max_velocity = "1 mm/s"'))
-    code, out, err = plan(capsys, p, "--rig", r)
+    code, _out, err = plan(capsys, p, "--rig", r)
     assert code == 2
     line = one_line(err)
     assert "step 0 (probe)" in line and "1.31 mm/s" in line and "max_velocity 1 mm/s" in line

@@ -63,19 +63,19 @@ def test_ramp_hold_without_a_search_is_refused_before_anything_moves() -> None:
 
 
 def test_the_arm_speed_cap_and_the_overlap_cap_hold_on_every_command() -> None:
-    rig, rheo = shear_rig(ShearLimits(max_overlap=0.5e-3))
+    rig, _rheo = shear_rig(ShearLimits(max_overlap=0.5e-3))
     with pytest.raises(LimitError, match="max_speed"):
         rig.rotate(2 * rig.rheometer.config.max_speed)
     rig.zero_gap()
     rig.know_touch_gap(3e-3)
-    with pytest.raises(LimitError, match="overlap limit 0.5 mm"):
+    with pytest.raises(LimitError, match=r"overlap limit 0\.5 mm"):
         rig.rheometer.set_gap(2.4e-3)
     rig.rheometer.set_gap(2.6e-3)  # within: goes through
     assert rig.rheometer.gap() == pytest.approx(2.6e-3)
 
 
 def test_a_ladder_deeper_than_the_overlap_cap_is_refused_before_it_moves() -> None:
-    rig, rheo = shear_rig()
+    rig, _rheo = shear_rig()
     ladder = {"kind": "speed_ladder", "name": "ladder", "touch_gap": "3 mm",
               "centre_angle": 0.8, "first_overlap": "1.5 mm", "overlaps": 1}
     report = rehearse(rig, protocol("shear", ladder))
@@ -84,7 +84,7 @@ def test_a_ladder_deeper_than_the_overlap_cap_is_refused_before_it_moves() -> No
 
 
 def test_rehearsal_counts_lab_time_samples_bytes_and_travel() -> None:
-    rig, stage, _ = compression_rig()
+    rig, _stage, _ = compression_rig()
     report = rehearse(rig, protocol("compression", SEARCH, HOLD))
     assert report.ok, report.reason
     search, hold = report.steps
@@ -93,7 +93,7 @@ def test_rehearsal_counts_lab_time_samples_bytes_and_travel() -> None:
     assert hold.samples >= 20 * 100  # 20 s hold at 100 Hz, plus ramp and retract
     assert hold.bytes == hold.samples * 8 * len(hold.columns)
     assert search.travel > 3e-3  # moved to the start, then probed
-    lo, hi = hold.ranges["position_m"]
+    _lo, hi = hold.ranges["position_m"]
     assert hi == pytest.approx(6.2e-3 + 0.06 * 18.63e-3, abs=2e-5)
     assert report.hits == []
 
