@@ -26,11 +26,34 @@ T = TypeVar("T")
 log = logging.getLogger(__name__)
 
 
-def build_rig(spec: RigSpec, clock: Clock) -> Rig:
-    """Connect every instrument of ``spec`` (starting simulators as needed)."""
+def build_rig(spec: RigSpec, clock: Clock, in_process: bool = False) -> Rig:
+    """Connect every instrument of ``spec`` (starting simulators as needed). With
+    ``in_process`` a simulated force input is reached without its gRPC server (the same
+    nidaqmx client and servicer, a direct call): the twin's speed-up."""
     if isinstance(spec, ShearRigSpec):
         return _shear(spec, clock)
-    return _compression(spec, clock)
+    return _compression(spec, clock, in_process)
+
+
+def twin_spec(spec: RigSpec) -> RigSpec:
+    """``spec`` with every instrument replaced by its simulator under the same configuration
+    (limits, caps, travel, calibration); the ``[simulator]`` sample where the file gives one,
+    else the nominal one (its defaults). The rheometer is reached in-process (``link =
+    "direct"``): the same driver code and lab times as over TCP, without the sockets."""
+    if isinstance(spec, ShearRigSpec):
+        return dataclasses.replace(
+            spec, rheometer=dataclasses.replace(spec.rheometer, transport="simulator"),
+            simulator=dataclasses.replace(spec.simulator, link="direct"))
+    return dataclasses.replace(
+        spec, stage=dataclasses.replace(spec.stage, transport="simulator"),
+        force=dataclasses.replace(spec.force, transport="simulator"))
+
+
+def build_twin(spec: RigSpec) -> Rig:
+    """The rig's twin on a fresh virtual clock: what ``gelrig plan`` rehearses on."""
+    from instrument.clock import VirtualClock
+
+    return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
 
 
 def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:
@@ -97,7 +120,8 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
     return ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
 
 
-def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
+def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = False
+                 ) -> CompressionRig:
     from drivers.kdc101 import KDC101
     from drivers.usb6001.sensor import Usb6001ForceSensor
     from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
@@ -138,12 +162,22 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
                 sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
                 chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
                 noise_rms=truth.noise * chain.sensitivity, material=truth.material or PLATES)
-            server = start_server(device)
-            closers.append(server.stop)
-            force_address = f"grpc://{server.address}"
+            if in_process:
+                import nidaqmx
+
+                from simulators.usb6001.inprocess import InProcessChannel
+
+                force_address = "in-process"
+                options: str | nidaqmx.GrpcSessionOptions = nidaqmx.GrpcSessionOptions(
+                    grpc_channel=InProcessChannel(device), session_name="")
+            else:
+                server = start_server(device)
+                closers.append(server.stop)
+                force_address = options = f"grpc://{server.address}"
         else:
             force_address = force_entry.address if force_entry.transport == "grpc" else "local"
-        force = Usb6001ForceSensor(force_address, force_entry.config, chain, clock)
+            options = force_address
+        force = Usb6001ForceSensor(options, force_entry.config, chain, clock)
         closers.append(force.close)
         tried = {"grpc": f"the NI gRPC Device Server at {force_address}",
                  "nidaqmx": "NI-DAQmx on this computer"}.get(force_entry.transport,
@@ -160,4 +194,4 @@ def _compression(spec: CompressionRigSpec, clock: Clock) -> CompressionRig:
                           list(reversed(hooks)))
 
 
-__all__ = ["build_rig"]
+__all__ = ["build_rig", "build_twin", "twin_spec"]

@@ -17,7 +17,8 @@ from instrument.errors import InstrumentError
 from instrument.fields import Config, Field, param
 from instrument.loadcell import ForceSensor
 from instrument.rheometer import Rheometer
-from instrument.stage import Stage
+from instrument.stage import Stage, StageConfig
+from protocols.caps import CappedRheometer, CappedStage
 from protocols.interlocks import Interlock
 from protocols.safestop import SafeState, stop_rheometer, stop_stage
 
@@ -95,6 +96,18 @@ class CompressionRig:
     first_touch: float | None = field(default=None, init=False)
 
     kind = "compression"
+
+    def __post_init__(self) -> None:
+        # every command goes through the rig file's caps ([stage] max_velocity, travel)
+        if not isinstance(self.stage, CappedStage):
+            caps = getattr(self.stage, "config", None)
+            self.stage = CappedStage(self.stage, caps if isinstance(caps, StageConfig)
+                                     else StageConfig())
+
+    @property
+    def stage_caps(self) -> StageConfig:
+        """The ``[stage]`` limits every command is checked against."""
+        return self.stage.caps if isinstance(self.stage, CappedStage) else StageConfig()
 
     def interlocks(self, overlap: bool = False) -> tuple[Interlock, ...]:
         """What a step checks on every sample: the force, and the overlap past first touch
@@ -186,6 +199,21 @@ class ShearRig:
     close_hooks: list[Callable[[], None]] = field(default_factory=list)
 
     kind = "shear"
+
+    def __post_init__(self) -> None:
+        # every command goes through the rig file's caps (max_speed, gap and overlap)
+        if not isinstance(self.rheometer, CappedRheometer):
+            self.rheometer = CappedRheometer(self.rheometer, self.limits.max_overlap)
+
+    def know_touch_gap(self, touch_gap: float) -> None:
+        """From now on refuse gaps more than the overlap limit below ``touch_gap`` (m)."""
+        if isinstance(self.rheometer, CappedRheometer):
+            self.rheometer.touch_gap = touch_gap
+
+    def gap_error(self, gap: float) -> str | None:
+        """Why the lift may not go to ``gap`` (m) under the rig's caps, or None."""
+        return self.rheometer.gap_error(gap) if isinstance(self.rheometer, CappedRheometer) \
+            else None
 
     def interlocks(self) -> tuple[Interlock, ...]:
         """What a step checks on every sample: torque and normal force."""

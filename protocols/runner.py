@@ -13,7 +13,7 @@ import logging
 from collections.abc import Mapping
 from typing import Any
 
-from instrument.errors import GelrigError, InterlockTripped
+from instrument.errors import GelrigError, InterlockTripped, LimitError
 from protocols.context import StepContext
 from protocols.control import Aborted, RunControl
 from protocols.events import (
@@ -67,6 +67,18 @@ class Runner:
         #: what the safe stop verified, if the run ended short
         self.safe_state: SafeState | None = None
 
+    def preflight(self) -> list[str]:
+        """Why the rig's caps would refuse a pending step, known before anything moves:
+        one line per problem, naming the step (``step 1 (ladder): ...``)."""
+        problems = []
+        earlier: tuple[type[Any], ...] = ()
+        for index, step in enumerate(self.protocol.steps):
+            if index not in self.results:
+                problems += [f"step {index} ({step.name}): {why}" for why in
+                             step.definition.preflight(step.params, self.rig, earlier)]
+            earlier += (step.definition.Result,)
+        return problems
+
     def _set_state(self, new: RunState, reason: str = "") -> None:
         old, self.state = self.state, new
         self.bus.publish(StateChanged(self.rig.clock.now(), old, new, reason))
@@ -84,6 +96,13 @@ class Runner:
 
     def _run(self) -> RunState:
         clock = self.rig.clock
+        refused = self.preflight()
+        if refused:  # a cap or a missing earlier result: fail before anything moves
+            self.reason = f"{refused[0]}; refused before anything moves"
+            self.bus.publish(Fault(clock.now(), LimitError.__name__, self.reason))
+            self._set_state(RunState.FAILED, self.reason)
+            self.bus.publish(Finished(clock.now(), RunState.FAILED, self.reason))
+            return self.state
         self._set_state(RunState.RUNNING)
         for index, step in enumerate(self.protocol.steps):
             if index in self.results:

@@ -26,6 +26,8 @@ from protocols.steps import KINDS, StepDefinition
 from protocols.steps.base import StepParams
 
 RIGS = ("compression", "shear")
+#: Longest step name: names become file names (``steps/NN_name.h5``).
+MAX_STEP_NAME = 80
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,12 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
         step_name = raw.get("name", definition.description or kind)
         if not isinstance(step_name, str) or not step_name.strip():
             raise where.error("name", step_name, "a non-empty string")
+        if (len(step_name) > MAX_STEP_NAME or not step_name.isprintable()
+                or any(c in step_name for c in "/\\")):
+            shown = step_name if len(step_name) <= 40 else f"{step_name[:37]}..."
+            raise where.error("name", shown.encode("unicode_escape").decode(),
+                              f"printable, at most {MAX_STEP_NAME} characters, no / or \\ "
+                              "(it names the step's data file)")
         steps.append(Step(definition, step_name, definition.parse(raw, where)))
     return ProtocolSpec(name, rig, tuple(steps), table, source)
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import cached_property
 from types import MappingProxyType
 
 #: Line termination for writes and reads (UNCONFIRMED).
@@ -97,9 +98,14 @@ class Message:
     key: str
     shape: Shape
 
-    @property
+    @cached_property
     def regex(self) -> re.Pattern[str]:
         return _compile(self.key, self.shape)
+
+    @cached_property
+    def _names(self) -> frozenset[str]:
+        return frozenset(f.name for f in self.shape) if not isinstance(self.shape, str) \
+            else frozenset()
 
     def encode(self, **values: object) -> str:
         """The line for ``values`` (no termination)."""
@@ -107,9 +113,9 @@ class Message:
             if values:
                 raise TypeError(f"{self.key} takes no values, got {sorted(values)}")
             return f"{self.key}[{self.shape}]"
-        missing = {f.name for f in self.shape} - values.keys()
-        extra = values.keys() - {f.name for f in self.shape}
-        if missing or extra:
+        if values.keys() != self._names:
+            missing = self._names - values.keys()
+            extra = values.keys() - self._names
             raise TypeError(f"{self.key}: missing {sorted(missing)}, unexpected {sorted(extra)}")
         body = ";".join(f.encode(values[f.name]) for f in self.shape)
         return f"{self.key}[{body}]"

@@ -29,8 +29,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--out", default=None, help="run directory (default runs/<time>-<rig>)")
     run.set_defaults(handler=cmd_run)
 
-    plan = sub.add_parser("plan", help="print a protocol's steps, duration and limit checks")
+    plan = sub.add_parser("plan", help="rehearse a protocol on the rig's simulated twin: "
+                          "lab time, travel, limits hit, data volume")
     _protocol_args(plan)
+    plan.add_argument("--out", default=None,
+                      help="where the run would record (for the disk-space check; default runs/)")
     plan.set_defaults(handler=cmd_plan)
 
     resume = sub.add_parser("resume", help="continue a run from its last completed step")
@@ -86,11 +89,56 @@ def print_plan(protocol: ProtocolSpec, rig: RigSpec) -> list[str]:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    """The static plan as a header, then the rehearsal on the rig's twin; 2 if it fails."""
+    import sys
+
+    from gelrig.factory import build_twin
+    from protocols.rehearsal import rehearse
+
     protocol = resolve_protocol(args.protocol)
-    failed = print_plan(protocol, resolve_rig(args.rig, protocol))
+    rig = resolve_rig(args.rig, protocol)
+    failed = print_plan(protocol, rig)
     if failed:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
+    print("\nRehearsal on the rig's twin (each instrument's simulator, same limits, "
+          "virtual time):", flush=True)
+    twin = build_twin(rig)
+    try:
+        report = rehearse(twin, protocol)
+    finally:
+        twin.close()
+    for line in report.lines():
+        print(f"\n{line}" if line.startswith("Total") else line)
+    warning = disk_warning(Path(args.out) if args.out else Path("runs"), report.bytes)
+    if warning:
+        print(warning)
+    if not report.ok:
+        print(f"gelrig plan: {report.failure()}", file=sys.stderr)
+        return 2
     return 0
+
+
+#: HDF5 files hold a little more than their columns (chunk indices, attributes).
+_STORE_OVERHEAD = 1.05
+
+
+def disk_warning(out: Path, data_bytes: int) -> str:
+    """A warning line when the disk under ``out`` (or its nearest existing parent) has less
+    free space than the run would write; '' when it has room."""
+    import shutil
+
+    from protocols.rehearsal import human_bytes
+
+    where = out.resolve()
+    while not where.exists() and where != where.parent:
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    need = data_bytes * _STORE_OVERHEAD
+    if free >= need:
+        return f"Output disk ({where}): {human_bytes(free)} free, the run writes about " \
+               f"{human_bytes(need)}"
+    return (f"WARNING: output disk ({where}) has {human_bytes(free)} free; the run writes "
+            f"about {human_bytes(need)}")
 
 
 def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:

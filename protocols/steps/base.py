@@ -121,6 +121,13 @@ class StepDefinition(Generic[RigT, ParamsT, ResultT]):
     def run(self, ctx: StepContext[RigT], params: ParamsT) -> ResultT:
         raise NotImplementedError
 
+    def preflight(self, params: ParamsT, rig: RigT,
+                  earlier: tuple[type[StepResult], ...]) -> list[str]:
+        """Why ``rig`` would refuse this step, known from its parameters before anything
+        moves: commanded speeds, positions or overlaps beyond the rig's caps, or an earlier
+        result it needs (``earlier``: the result types of the steps before it). [] if none."""
+        return []
+
 
 def given(value: float | None) -> float | None:
     """``value`` if it is a finite number, else None (an optional parameter left out)."""

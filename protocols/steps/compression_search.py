@@ -12,6 +12,7 @@ from typing import ClassVar
 from instrument.analysis import estimate_first_touch
 from instrument.errors import InstrumentError
 from instrument.fields import Field, param
+from protocols.caps import stage_position_error, stage_speed_error
 from protocols.context import StepContext
 from protocols.rig import CompressionLimits, CompressionRig
 from protocols.steps.acquire import COLUMNS, ForceRecorder
@@ -98,6 +99,14 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
         duration = (p.max_travel / p.speed
                     + approaches * (2 * p.retract / p.speed + per_probe) + p.tare_time)
         return StepPlan(duration, travel, lines, checks)
+
+    def preflight(self, params: SearchParams, rig: CompressionRig,
+                  earlier: tuple[type[StepResult], ...]) -> list[str]:
+        caps = rig.stage_caps
+        why = [stage_speed_error(params.speed, caps),
+               stage_speed_error(rig.limits.fast_speed, caps),
+               stage_position_error(params.start, caps)]
+        return [w for w in why if w is not None]
 
     def run(self, ctx: StepContext[CompressionRig], params: SearchParams) -> SearchResult:
         p = params

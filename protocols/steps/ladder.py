@@ -9,9 +9,10 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from instrument import paper
-from instrument.errors import GelrigError
+from instrument.errors import GelrigError, LimitError
 from instrument.fields import Field, FieldList, Where, param
 from instrument.sliding import rpm_from_speed
+from protocols.caps import arm_speed_error
 from protocols.context import StepContext
 from protocols.rig import ShearLimits, ShearRig
 from protocols.steps.arm import COLUMNS, ArmRecorder
@@ -116,6 +117,23 @@ class SpeedLadder(StepDefinition[ShearRig, LadderParams, LadderResult]):
         travel = len(overlaps) * len(p.speeds) * 2 * p.travel
         return StepPlan(len(overlaps) * per_overlap, travel, lines, checks)
 
+    def preflight(self, params: LadderParams, rig: ShearRig,
+                  earlier: tuple[type[StepResult], ...]) -> list[str]:
+        p, config = params, rig.rheometer.config
+        why = [arm_speed_error(v, config) for v in p.speeds]
+        cap = min(rig.limits.max_overlap, config.overlap_limit)
+        deepest = max(p.levels)
+        if deepest > cap:
+            why.append(f"overlap {deepest * 1e3:.4g} mm beyond the overlap limit {cap * 1e3:g} mm"
+                       " ([limits] max_overlap, [rheometer] overlap_limit)")
+        if p.touch_gap is not None:
+            why += [rig.gap_error(p.touch_gap - d) for d in p.levels]
+        searched = any(issubclass(kind, ShearSearchResult) for kind in earlier)
+        if (p.touch_gap is None or p.centre_angle is None) and not searched:
+            why.append("speed_ladder needs touch_gap and centre_angle, or a shear contact "
+                       "search before it")
+        return list(dict.fromkeys(w for w in why if w is not None))
+
     def run(self, ctx: StepContext[ShearRig], params: LadderParams) -> LadderResult:
         p = params
         rig = ctx.rig
@@ -129,6 +147,10 @@ class SpeedLadder(StepDefinition[ShearRig, LadderParams, LadderResult]):
         if touch is None or centre is None:
             raise GelrigError("speed_ladder needs touch_gap and centre_angle, or a shear "
                               "contact search before it")
+        rig.know_touch_gap(touch)
+        for why in (rig.gap_error(touch - depth) for depth in p.levels):
+            if why is not None:  # refused before anything moves in this step
+                raise LimitError(f"{why}; nothing moved")
         ctx.interlocks = rig.interlocks()
         if not rheo.status().gap_referenced:
             rheo.zero_gap()

@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 from instrument.analysis import fit_hold
 from instrument.errors import GelrigError
 from instrument.fields import Field, param
+from protocols.caps import stage_position_error, stage_speed_error
 from protocols.context import StepContext
 from protocols.rig import CompressionLimits, CompressionRig
 from protocols.steps.acquire import COLUMNS, ForceRecorder
@@ -102,6 +103,20 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
                                 else 1e-3)
         travel = p.approach + depth + p.retract * 2
         return StepPlan(ramp + p.hold + back, travel, lines, checks)
+
+    def preflight(self, params: RampHoldParams, rig: CompressionRig,
+                  earlier: tuple[type[StepResult], ...]) -> list[str]:
+        p, caps = params, rig.stage_caps
+        why = [stage_speed_error(p.speed, caps), stage_speed_error(rig.limits.fast_speed, caps)]
+        if p.depth > rig.limits.max_overlap:
+            why.append(f"depth {p.depth * 1e3:.4f} mm beyond the overlap limit "
+                       f"{rig.limits.max_overlap * 1e3:g} mm ([limits] max_overlap)")
+        if p.first_touch is not None:
+            why += [stage_position_error(p.first_touch + p.depth, caps),
+                    stage_position_error(p.first_touch - p.approach, caps)]
+        elif not any(issubclass(kind, SearchResult) for kind in earlier):
+            why.append("ramp_hold needs first_touch, or a contact search before it")
+        return [w for w in why if w is not None]
 
     def run(self, ctx: StepContext[CompressionRig], params: RampHoldParams) -> RampHoldResult:
         p = params

@@ -19,6 +19,7 @@ import numpy as np
 from instrument.errors import InstrumentError
 from instrument.fields import Field, Where, param
 from instrument.sliding import speed_from_rpm
+from protocols.caps import arm_speed_error
 from protocols.context import StepContext
 from protocols.rig import ShearLimits, ShearRig
 from protocols.steps.arm import COLUMNS, ArmRecorder
@@ -111,6 +112,13 @@ class ShearContactSearch(StepDefinition[ShearRig, ShearSearchParams, ShearSearch
         duration = (descents + p.coarse / p.fine + p.touch_passes) \
             * sweep_time
         return StepPlan(duration, (descents + 10) * 2 * p.sweep, lines, checks)
+
+    def preflight(self, params: ShearSearchParams, rig: ShearRig,
+                  earlier: tuple[type[StepResult], ...]) -> list[str]:
+        config = rig.rheometer.config
+        why = [arm_speed_error(speed_from_rpm(params.rpm, config.arm), config),
+               rig.gap_error(params.safe_gap)]
+        return [w for w in why if w is not None]
 
     def run(self, ctx: StepContext[ShearRig], params: ShearSearchParams) -> ShearSearchResult:
         p = params

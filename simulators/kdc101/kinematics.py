@@ -141,6 +141,7 @@ class Trajectory:
     def __init__(self, x0: float, t0: float = 0.0):
         self._phases = [Phase(t0, x0, 0.0, 0.0)]
         self._starts = [t0]
+        self._table: NDArray[np.float64] | None = None  # (t0, x0, v0, a) rows, built lazily
 
     def _phase(self, t: float) -> Phase:
         i = bisect.bisect_right(self._starts, t) - 1
@@ -157,11 +158,14 @@ class Trajectory:
     def positions_at(self, ts: NDArray[np.float64]) -> NDArray[np.float64]:
         """``position_at`` for an array of times (one call for a whole acquisition block)."""
         ts = np.asarray(ts, dtype=float)
-        idx = np.clip(np.searchsorted(self._starts, ts, side="right") - 1, 0, None)
-        t0 = np.array([p.t0 for p in self._phases])[idx]
-        x0 = np.array([p.x0 for p in self._phases])[idx]
-        v0 = np.array([p.v0 for p in self._phases])[idx]
-        a = np.array([p.a for p in self._phases])[idx]
+        if self._table is None:
+            self._table = np.array([(p.t0, p.x0, p.v0, p.a) for p in self._phases], dtype=float)
+        table = self._table
+        idx = np.clip(np.searchsorted(table[:, 0], ts, side="right") - 1, 0, None)
+        if idx.size and idx.min() == idx.max():  # one phase (most blocks): no gathers
+            t0, x0, v0, a = table[idx[0]]
+        else:
+            t0, x0, v0, a = (table[idx, k] for k in range(4))
         dt = ts - t0
         out: NDArray[np.float64] = x0 + v0 * dt + 0.5 * a * dt * dt
         return out
@@ -171,6 +175,7 @@ class Trajectory:
         keep = bisect.bisect_left(self._starts, t)
         self._phases = self._phases[:keep] + phases
         self._starts = [p.t0 for p in self._phases]
+        self._table = None
 
     @property
     def end_time(self) -> float:

@@ -51,6 +51,7 @@ def test_plan_prints_steps_duration_and_checks(capsys, name):
     assert main(["plan", name]) == 0
     out = capsys.readouterr().out
     assert "Total: ~" in out and "limit checks all passed" in out and "lab time" in out
+    assert "rehearsal passed" in out  # then rehearsed on the twin (tests/gelrig/test_cli_plan)
 
 
 def test_plan_fails_on_a_limit(tmp_path, capsys):
