@@ -319,12 +319,13 @@ class RunDirectory:
         with contextlib.suppress(OSError):
             (self.path / RESERVE_NAME).unlink(missing_ok=True)
 
-    def discard_empty(self) -> None:
-        """Remove a run directory that never recorded a step (only what create made)."""
+    def discard_empty(self, also: Sequence[str] = ()) -> None:
+        """Remove a run directory that never recorded a step (only what create made, and the
+        files named in ``also``, such as the run's log)."""
         with contextlib.suppress(OSError):
             if any((self.path / "steps").iterdir()):
                 return
-            for name in ("run.json", RESERVE_NAME, LOCK_NAME):
+            for name in ("run.json", RESERVE_NAME, LOCK_NAME, *also):
                 (self.path / name).unlink(missing_ok=True)
             (self.path / "steps").rmdir()
             self.path.rmdir()

@@ -155,7 +155,7 @@ def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from gelrig.session import default_run_dir, execute, metadata
+    from gelrig.session import LOG_NAME, default_run_dir, execute, metadata
     from instrument.store import RunDirectory, check_out_dir
 
     protocol = resolve_protocol(args.protocol)
@@ -173,7 +173,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             state, runner = execute(protocol, rig, clock, run)
         except ConfigError:  # e.g. an instrument that cannot be reached: nothing recorded
             if run.read_metadata().get("status") == "created":
-                run.discard_empty()
+                run.discard_empty(also=(LOG_NAME,))
             raise
         return _finish(run, state.value, runner.reason)
 
