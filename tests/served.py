@@ -12,6 +12,7 @@ import select
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -31,8 +32,21 @@ class Served:
     port: int
 
     def pause(self) -> None:
-        """SIGSTOP: the process freezes, its sockets stay open (a hung instrument)."""
+        """SIGSTOP: the process freezes, its sockets stay open (a hung instrument).
+
+        Returns once the process is stopped (state T), waiting at most a second.
+        """
         self.proc.send_signal(signal.SIGSTOP)
+        end = time.monotonic() + 1.0
+        while self._state() not in ("T", "t", "") and time.monotonic() < end:
+            time.sleep(0.005)
+
+    def _state(self) -> str:
+        try:
+            stat = Path(f"/proc/{self.proc.pid}/stat").read_text()
+        except OSError:
+            return ""
+        return stat.rsplit(")", 1)[1].split()[0]
 
     def resume(self) -> None:
         self.proc.send_signal(signal.SIGCONT)
