@@ -164,12 +164,13 @@ class VisaTransport:
     def discard_input(self) -> None:
         if self._closed:
             return
+        before = self._res.timeout  # the usual one, or a shorter reply_timeout in force
         self._res.timeout = 20
         # Read until the short timeout says the input is empty (the failure is the goal).
         with contextlib.suppress(Exception):
             for _ in range(10_000):
                 self._res.read_raw()
-        self._res.timeout = self._timeout_ms
+        self._res.timeout = before
 
     def close(self) -> None:
         if self._closed:

@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from drivers.mcr501 import MCR501
+from drivers.mcr501.driver import STOP_ACK_TIMEOUT_S
 from instrument.clock import RealClock, VirtualClock
 from instrument.errors import Disconnected, FramingError, InstrumentTimeout
 from instrument.rheometer import RheometerConfig
@@ -18,9 +19,11 @@ from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 from tests.faultproxy import FaultProxy
 from tests.served import Served, serve
 
-TIMEOUT = 1.0
+TIMEOUT = 1.5
 CONFIG = RheometerConfig(timeout=TIMEOUT)
-BOUND = TIMEOUT + 1.5  # the reply deadline, the stop after it, and a loaded machine
+#: The reply deadline, the bounded stop after it, and a loaded machine (a stop that waited a
+#: whole reply timeout, as before ADR 0060, exceeds it).
+BOUND = TIMEOUT + STOP_ACK_TIMEOUT_S + 0.7
 
 
 @pytest.fixture
