@@ -26,7 +26,9 @@ class Usb6001Config(Config):
     ``buffer_seconds`` sizes the acquisition buffer (at least DAQmx's default is used);
     samples beyond ``over_range_volts`` in magnitude are over range, and ``on_over_range``
     says whether a read raises ForceOverRangeError (default) or only flags them;
-    ``read_margin`` (s) is added to a block's duration to make its read timeout.
+    ``read_margin`` (s) is added to a block's duration to make its read timeout;
+    ``call_timeout`` (s) is the deadline of every call to an NI gRPC Device Server, added to
+    a read's own timeout for that read (ADR 0060).
     """
 
     section: ClassVar[str] = "force"
@@ -43,6 +45,9 @@ class Usb6001Config(Config):
     on_over_range: str = param(Choice("on_over_range", OVER_RANGE_POLICIES, "raise"))
     read_margin: float = param(Field("read_margin", "s", 5.0, 0.0, 600.0,
                                      help="added to a block's duration for its read deadline"))
+    call_timeout: float = param(Field("call_timeout", "s", 2.0, 0.0, 600.0, lo_open=True,
+                                      help="deadline of every gRPC call (reads: plus their "
+                                      "own timeout)"))
 
     def validate(self, where: Where) -> None:
         limit = 8 if self.terminal == "RSE" else 4

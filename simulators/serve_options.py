@@ -72,6 +72,8 @@ def usb6001_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
     parser.add_argument("--buffer-size", type=int, default=None,
                         help="acquisition buffer in samples (default: DAQmx's rule)")
+    parser.add_argument("--duration", type=float, default=None,
+                        help="stop after this many real seconds (default: until interrupted)")
 
 
 def mcr501_arguments(parser: argparse.ArgumentParser) -> None:

@@ -3,9 +3,10 @@
 ``KDC101("COM3").open()``, ``KDC101("/dev/ttyUSB0")``, ``KDC101("socket://host:port")`` or
 ``KDC101("kdc101sim://name", clock=clock)`` all run the same code; the constructor does no
 I/O, ``open()`` (or ``with``) connects (ADR 0050). Every wait goes through the injected clock;
-bad bytes are skipped (the framer resynchronises) and a lost reply is asked for once more;
-timeouts, device error replies and a vanished port raise typed errors, and any fault while the
-stage may be moving (Ctrl-C included) first commands MOT_MOVE_STOP.
+bad bytes are skipped (the framer resynchronises) and a lost reply is asked for once more,
+within the same reply deadline (``StageConfig.reply_timeout_s``, ADR 0060); timeouts, device
+error replies and a vanished port raise typed errors, and any fault while the stage may be
+moving (Ctrl-C included) first commands MOT_MOVE_STOP.
 """
 
 from __future__ import annotations
@@ -237,26 +238,41 @@ class KDC101:
             self._last_ack = now
 
     def _query(self, request: Message, reply_id: int, timeout: float | None = None) -> Message:
-        """Send ``request`` and return its reply; ask once more if garbage ate the reply."""
+        """Send ``request`` and return its reply within ``timeout`` (reply_timeout_s) in all.
+
+        If only invalid bytes came in the first half of the deadline (garbage ate the reply),
+        the request is sent once more and the second half waits for that answer: a retry
+        never extends the deadline (ADR 0060).
+        """
         timeout = self.config.reply_timeout_s if timeout is None else timeout
         errors_before = self.framing_errors
-        for attempt in (1, 2):
-            self._send(request)
-            reply = self._await(lambda m: m.msg_id == reply_id,
-                                self.clock.now() + timeout)
-            if reply is not None:
-                return reply
-            if self._framer.pending:  # a truncated frame is stuck in the buffer
-                self.framing_errors += 1
-                self._framer.clear()
-            if attempt == 1 and self.framing_errors > errors_before:
-                continue
-            break
-        what = f"no {message_name(reply_id)} within {timeout} s after {request.name}"
+        start = self.clock.now()
+        end = start + timeout
+
+        def wanted(m: Message) -> bool:
+            return m.msg_id == reply_id
+
+        self._send(request)
+        reply = self._await(wanted, start + timeout / 2)
+        if reply is None:
+            self._drop_partial_frame()
+            if self.framing_errors > errors_before:
+                self._send(request)
+            reply = self._await(wanted, end)
+        if reply is not None:
+            return reply
+        self._drop_partial_frame()
+        what = f"no {message_name(reply_id)} within {timeout:g} s after {request.name}"
         if self.framing_errors > errors_before:
             raise FramingError(f"KDC101 at {self.address}: {what} (only invalid bytes came: "
                                f"{self._framer.discarded} skipped so far)")
         raise InstrumentTimeout(f"KDC101 at {self.address}: {what}")
+
+    def _drop_partial_frame(self) -> None:
+        """A truncated frame stuck in the buffer counts as a framing error and is dropped."""
+        if self._framer.pending:
+            self.framing_errors += 1
+            self._framer.clear()
 
     def _req(self, msg_id: int, reply_id: int) -> Message:
         return self._query(command(msg_id, CHANNEL), reply_id)

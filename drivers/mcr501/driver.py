@@ -38,6 +38,9 @@ log = logging.getLogger(__name__)
 _MODES = {"IDLE": "idle", "ROT": "rotating", "HOLD": "holding"}
 #: Shortest stream interval the driver asks for (s).
 MIN_STREAM_INTERVAL = 1e-3
+#: Longest wait (s) for the acknowledgement of a stop sent after a fault (ADR 0060): the stop
+#: goes out at once; a silent instrument must not double the time to report the fault.
+STOP_ACK_TIMEOUT_S = 0.5
 
 
 class MCR501:
@@ -66,6 +69,7 @@ class MCR501:
         self._backend, self._resource_manager, self._baud_rate = (
             backend, resource_manager, baud_rate)
         self._maybe_rotating = False
+        self._resync = False  # a reply may still be on its way after a fault: drain first
         self._stream_t0: float | None = None
         self.touch_gap: float | None = self._config.touch_gap
         self.identity: Identity | None = None
@@ -121,6 +125,9 @@ class MCR501:
 
     def _transact(self, name: str, **values: object) -> Values:
         command = COMMANDS[name]
+        if self._resync:
+            self._resync = False
+            self._drain()
         self._transport.write_line(command.request.encode(**values))
         return decode_reply(command, self._transport.read_line())
 
@@ -140,6 +147,7 @@ class MCR501:
                     exc, GelrigError
                 ):
                     self._drain()
+                    self._resync = True  # a late reply (a frozen instrument that resumes)
                 raise
 
     def _drain(self) -> None:
@@ -147,13 +155,19 @@ class MCR501:
             self._transport.discard_input()
 
     def _emergency_stop(self) -> None:
-        """Send stop, once more if the first attempt fails; raise the last failure."""
+        """Send stop, once more if its answer came garbled; raise the last failure.
+
+        The acknowledgement is awaited at most STOP_ACK_TIMEOUT_S (never longer than the
+        reply timeout), and an unanswered stop is not repeated (a silent instrument would
+        not answer the second either), so a fault is reported within about timeout + 0.5 s.
+        """
         for attempt in (1, 2):
             try:
-                self._transact("stop")
-            except InstrumentError:
+                with self._transport.reply_timeout(STOP_ACK_TIMEOUT_S):
+                    self._transact("stop")
+            except InstrumentError as exc:
                 self._drain()
-                if attempt == 2:
+                if attempt == 2 or isinstance(exc, InstrumentTimeout | Disconnected):
                     raise
                 continue
             self._maybe_rotating = False

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import contextlib
 import socket
+from collections.abc import Iterator
+from contextlib import AbstractContextManager
 from typing import Any, Protocol
 
 from drivers.mcr501.commands import BAUD_RATE, DATA_BITS, TERMINATION
@@ -28,6 +30,10 @@ class LineTransport(Protocol):
 
     def discard_input(self) -> None:
         """Drop whatever has arrived but not been read (resynchronise after a fault)."""
+        ...
+
+    def reply_timeout(self, seconds: float) -> AbstractContextManager[None]:
+        """Within the block, a read waits at most ``seconds`` (never longer than usual)."""
         ...
 
     def close(self) -> None:
@@ -97,7 +103,7 @@ class VisaTransport:
             if exc.error_code == constants.StatusCode.error_timeout:
                 return InstrumentTimeout(
                     f"MCR 501 on {self.resource_name}: no reply within "
-                    f"{self._timeout_ms / 1000:g} s while {doing}"
+                    f"{self._res.timeout / 1000:g} s while {doing}"
                 )
             return Disconnected(f"MCR 501 on {self.resource_name}: {doing} failed: {exc}")
         if isinstance(exc, UnicodeError):
@@ -142,15 +148,29 @@ class VisaTransport:
                 mapped = Disconnected(f"MCR 501 on {self.resource_name}: connection closed")
             raise mapped from exc
 
+    @contextlib.contextmanager
+    def reply_timeout(self, seconds: float) -> Iterator[None]:
+        ms = max(1, min(self._timeout_ms, round(seconds * 1000)))
+        if self._closed or ms == self._timeout_ms:
+            yield
+            return
+        self._res.timeout = ms
+        try:
+            yield
+        finally:
+            with contextlib.suppress(Exception):
+                self._res.timeout = self._timeout_ms
+
     def discard_input(self) -> None:
         if self._closed:
             return
+        before = self._res.timeout  # the usual one, or a shorter reply_timeout in force
         self._res.timeout = 20
         # Read until the short timeout says the input is empty (the failure is the goal).
         with contextlib.suppress(Exception):
             for _ in range(10_000):
                 self._res.read_raw()
-        self._res.timeout = self._timeout_ms
+        self._res.timeout = before
 
     def close(self) -> None:
         if self._closed:

@@ -6,10 +6,16 @@ sampling; blocks are read with the stream reader into preallocated arrays, times
 injected clock from the sample index (sample k at start + k / rate), converted to newtons
 through the calibration chain and the tare. The constructor does no I/O; ``open()`` (or
 ``with``) creates the task (ADR 0050).
+
+Over gRPC every call has a deadline (``call_timeout``, plus a read's own timeout) so a frozen
+server is an InstrumentTimeout, not a hang (ADR 0060); the task is the named server session
+``gelrig_<device>``, and a session left by a process that died is closed and made anew on
+``open()`` (ADR 0061).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager, suppress
@@ -17,14 +23,23 @@ from contextlib import AbstractContextManager, contextmanager, suppress
 import grpc
 import nidaqmx
 import numpy as np
+from nidaqmx import SessionInitializationBehavior as Behavior
 from nidaqmx.constants import AcquisitionType, TerminalConfiguration
 from nidaqmx.stream_readers import AnalogSingleChannelReader
 from numpy.typing import ArrayLike
 
 from drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
+from drivers.usb6001.deadline import DeadlineInterceptor, with_deadlines
 from drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
 from instrument.clock import Clock
-from instrument.errors import ConfigError, GelrigError, InstrumentError
+from instrument.errors import (
+    ConfigError,
+    Disconnected,
+    FramingError,
+    GelrigError,
+    InstrumentError,
+    InstrumentTimeout,
+)
 from instrument.identity import Identity
 from instrument.loadcell import (
     AcquisitionTimeoutError,
@@ -33,6 +48,8 @@ from instrument.loadcell import (
     LoadCellChain,
 )
 from instrument.safety import guarded, stop_on_fault
+
+log = logging.getLogger(__name__)
 
 #: Fallback device limit (S/s aggregate) if the device does not report its maximum rate.
 DEFAULT_MAX_RATE = 20_000.0
@@ -51,6 +68,11 @@ def grpc_target(address: str) -> str | None:
     if ":" not in target:
         raise ConfigError("address", address, "allowed: local, or grpc://HOST:PORT")
     return target
+
+
+def session_name(device: str) -> str:
+    """gelrig's named server session (and DAQmx task) for ``device``: ``gelrig_<device>``."""
+    return f"gelrig_{device}"
 
 
 def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, grpc.Channel | None]:
@@ -92,6 +114,10 @@ class Usb6001ForceSensor:
         else:
             self._target, self._grpc = None, address
         self._owned_channel: grpc.Channel | None = None
+        self._deadlines = DeadlineInterceptor(config.call_timeout)
+        given_name = self._grpc.session_name if self._grpc is not None else ""
+        self.session = given_name or session_name(config.device)
+        self.reclaimed = False  # open() took over a session a dead process left
         self._zero = chain.offset
         self._rate = 0.0
         self._running = False
@@ -114,12 +140,16 @@ class Usb6001ForceSensor:
         """
         if self._task is not None:
             return self
+        channel: grpc.Channel | None = None
         if self._target is not None:
-            self._owned_channel = grpc.insecure_channel(self._target)
-            self._grpc = nidaqmx.GrpcSessionOptions(grpc_channel=self._owned_channel,
-                                                    session_name="")
+            self._owned_channel = channel = grpc.insecure_channel(self._target)
+        elif self._grpc is not None:
+            channel = self._grpc.grpc_channel
         try:
-            self._task = self._create_task()
+            # One budget for the whole open: nidaqmx probes the server's version three times
+            # and swallows the failures, so per-call deadlines alone would add up.
+            with self._deadlines.budget(2 * self.config.call_timeout):
+                self._task = self._create_task(channel)
         except BaseException:
             self._close_channel()
             raise
@@ -128,10 +158,43 @@ class Usb6001ForceSensor:
         self._reader.verify_array_shape = False
         return self
 
-    def _create_task(self) -> nidaqmx.Task:
+    @property
+    def server(self) -> str | None:
+        """host:port of the NI gRPC Device Server, None for local NI-DAQmx (for messages)."""
+        if self._target is not None:
+            return self._target
+        return None if self._grpc is None else "the given gRPC channel"
+
+    def _options(self, channel: grpc.Channel, behavior: Behavior) -> nidaqmx.GrpcSessionOptions:
+        kwargs = {} if self._grpc is None else {"api_key": self._grpc.api_key}
+        return nidaqmx.GrpcSessionOptions(with_deadlines(channel, self._deadlines),
+                                          self.session, initialization_behavior=behavior,
+                                          **kwargs)
+
+    def _new_task(self, channel: grpc.Channel | None) -> nidaqmx.Task:
+        """The task: local, or gelrig's server session, reclaimed if a dead process left it.
+
+        AUTO attaches to an existing session of that name; nidaqmx then marks the task as
+        not to be closed by us (``_close_on_exit`` false). Such a session belongs to no live
+        gelrig of this rig (one process per rig), so it is closed (stopping its acquisition,
+        releasing the device) and a new one initialised.
+        """
+        if channel is None:
+            return nidaqmx.Task()
+        task = nidaqmx.Task(self.session, grpc_options=self._options(channel, Behavior.AUTO))
+        if getattr(task, "_close_on_exit", True):
+            return task
+        log.warning("USB-6001 %s: reclaiming session %r on %s left by a process that ended "
+                    "without closing it", self.config.device, self.session, self.server)
+        task.close()
+        self.reclaimed = True
+        return nidaqmx.Task(self.session, grpc_options=self._options(
+            channel, Behavior.INITIALIZE_SERVER_SESSION))
+
+    def _create_task(self, channel: grpc.Channel | None) -> nidaqmx.Task:
         config = self.config
         with self._errors():
-            task = nidaqmx.Task(grpc_options=self._grpc)
+            task = self._new_task(channel)
             try:
                 task.ai_channels.add_ai_voltage_chan(
                     config.physical_channel,
@@ -152,7 +215,6 @@ class Usb6001ForceSensor:
         if self._owned_channel is not None:
             self._owned_channel.close()
             self._owned_channel = None
-            self._grpc = None
 
     def __enter__(self) -> Usb6001ForceSensor:
         return self.open()
@@ -183,7 +245,10 @@ class Usb6001ForceSensor:
         try:
             yield
         except NIDAQMX_ERRORS as exc:
-            raise translate(exc, self.config.device) from exc
+            raise self._translate(exc) from exc
+
+    def _translate(self, exc: Exception) -> GelrigError:
+        return translate(exc, self.config.device, self.server, self.session)
 
     @property
     def task(self) -> nidaqmx.Task:
@@ -210,7 +275,7 @@ class Usb6001ForceSensor:
             "device": self.config.device,
             "channel": self.config.physical_channel,
             "terminal": self.config.terminal,
-            "transport": "grpc" if self._grpc is not None else "local NI-DAQmx",
+            "transport": "local NI-DAQmx" if self.server is None else "grpc",
         })
 
     def max_rate(self) -> float:
@@ -244,7 +309,8 @@ class Usb6001ForceSensor:
     def read_block(self, n: int | None = None, timeout: float | None = None) -> ForceBlock:
         """The next ``n`` samples (None: all available now), waiting up to ``timeout`` (s).
 
-        The default timeout is the block's duration plus ``config.read_margin``.
+        The default timeout is the block's duration plus ``config.read_margin``; over gRPC
+        the call's deadline is that plus ``config.call_timeout`` (InstrumentTimeout after it).
         """
         if not self._running:
             raise InstrumentError(f"USB-6001 {self.config.device}: read before start()")
@@ -255,20 +321,22 @@ class Usb6001ForceSensor:
             raise ValueError(f"cannot read {n} samples")
         if timeout is None:
             timeout = n / self._rate + self.config.read_margin
+        if not (math.isfinite(timeout) and timeout >= 0):
+            raise ValueError(f"read timeout must be a finite number of seconds, got {timeout}")
         data = np.empty(n)
         try:
             if n:
                 self._reader.read_many_sample(data, n, timeout=timeout)
         except nidaqmx.errors.DaqReadError as exc:
             if exc.error_code != SAMPLES_NOT_YET_AVAILABLE:
-                raise translate(exc, self.config.device) from exc
+                raise self._translate(exc) from exc
             got = exc.samps_per_chan_read
             block = self._block(data[:got])
             raise AcquisitionTimeoutError(
                 f"USB-6001 {self.config.device}: {got} of {n} samples arrived within "
                 f"{timeout:g} s", block) from exc
         except NIDAQMX_ERRORS as exc:
-            raise translate(exc, self.config.device) from exc
+            raise self._translate(exc) from exc
         block = self._block(data)
         if block.any_over_range and self.config.on_over_range == "raise":
             bad = np.flatnonzero(block.over_range)
@@ -314,14 +382,24 @@ class Usb6001ForceSensor:
                 self._task.stop()
 
     def close(self) -> None:
-        """Stop, release the task, and close a gRPC channel this sensor opened; idempotent."""
+        """Stop, release the task, and close a gRPC channel this sensor opened; idempotent.
+
+        Bounded by one ``call_timeout`` in all (a frozen server costs one deadline). A server
+        that is gone or frozen is logged, not raised: the task is released here either way,
+        and the next ``open()`` on that server reclaims its session (ADR 0061).
+        """
         try:
-            self.stop()
-        finally:
-            task, self._task = self._task, None
-            try:
-                if task is not None:
-                    with self._errors():
-                        task.close()
-            finally:
-                self._close_channel()
+            with self._deadlines.budget(self.config.call_timeout):
+                try:
+                    self.stop()
+                finally:
+                    task, self._task = self._task, None
+                    try:
+                        if task is not None:
+                            with self._errors():
+                                task.close()
+                    finally:
+                        self._close_channel()
+        except (Disconnected, InstrumentTimeout, FramingError) as exc:
+            log.warning("USB-6001 %s: closed without the server's answer: %s",
+                        self.config.device, exc)

@@ -209,6 +209,10 @@ class SimulatedUsb6001:
             self._tasks[name] = SimTask(name)
             return name
 
+    def has_task(self, name: str) -> bool:
+        with self._lock:
+            return name in self._tasks
+
     def task(self, name: str) -> SimTask:
         try:
             return self._tasks[name]

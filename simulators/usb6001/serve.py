@@ -62,10 +62,11 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     print(f"usb6001: simulated {device.spec.product_type} {device.spec.name} listening on "
           f"grpc://{server.address} (clock {args.clock})", flush=True)
     try:
+        duration = getattr(args, "duration", None)
         if stop is None:
-            server.server.wait_for_termination()
+            server.server.wait_for_termination(timeout=duration)
         else:
-            stop.wait()
+            stop.wait(duration)
     except KeyboardInterrupt:
         print("usb6001: stopped", file=sys.stderr)
     finally:

@@ -6,6 +6,12 @@ ends with trailing metadata ``ni-error`` = the DAQmx code (plus ``ni-samps-per-c
 reads), so the client raises DaqError / DaqReadError with that code; a read that times out
 answers normally with ``status`` = -200284 and the samples it did get, as the device returns
 them. RPCs outside the subset stay UNIMPLEMENTED (the client raises RpcError).
+
+Named sessions follow the server's session initialisation behaviour (ADR 0061): a CreateTask
+with a session name that exists attaches to it (AUTO, ATTACH_TO_EXISTING; the response says
+``new_session_initialized = False``) or fails with ALREADY_EXISTS (INITIALIZE_NEW); attaching
+to a name that does not exist fails with NOT_FOUND. The status codes are those of NI's
+session-management examples; the real server's are UNVERIFIED.
 """
 
 # ruff: noqa: N802  (RPC method names are fixed by the NiDAQmx gRPC service)
@@ -17,7 +23,11 @@ from typing import Any, NoReturn, TypeAlias, TypeVar
 import grpc
 from nidaqmx._stubs import nidaqmx_pb2 as pb
 from nidaqmx._stubs import nidaqmx_pb2_grpc as pb_grpc
-from session_pb2 import Session
+from session_pb2 import (
+    SESSION_INITIALIZATION_BEHAVIOR_ATTACH_TO_EXISTING,
+    SESSION_INITIALIZATION_BEHAVIOR_INITIALIZE_NEW,
+    Session,
+)
 
 from simulators.usb6001.device import (
     ATTR_NOT_SUPPORTED,
@@ -123,9 +133,19 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
     # --- task lifecycle ----------------------------------------------------------------------
 
     def CreateTask(self, request: Any, context: Context) -> Any:
+        name, behavior = request.session_name, request.initialization_behavior
+        if name and self.device.has_task(name):
+            if behavior == SESSION_INITIALIZATION_BEHAVIOR_INITIALIZE_NEW:
+                context.abort(grpc.StatusCode.ALREADY_EXISTS,
+                              f"Cannot initialize '{name}': a session of that name exists.")
+            return pb.CreateTaskResponse(task=Session(name=name), new_session_initialized=False)
+        if behavior == SESSION_INITIALIZATION_BEHAVIOR_ATTACH_TO_EXISTING:
+            context.abort(grpc.StatusCode.NOT_FOUND,
+                          f"Cannot attach to '{name}': no session of that name exists.")
+
         def create() -> Any:
-            name = self.device.create_task(request.session_name)
-            return pb.CreateTaskResponse(task=Session(name=name), new_session_initialized=True)
+            created = self.device.create_task(name)
+            return pb.CreateTaskResponse(task=Session(name=created), new_session_initialized=True)
 
         return self._run(context, create)
 

@@ -1,0 +1,128 @@
+"""KDC101 over TCP (pyserial ``socket://``) through a fault proxy, and its served simulator
+frozen or killed: each fault is a typed error within the reply timeout, a moving stage is
+told to stop first, and the driver recovers or reports Disconnected (ADR 0060)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from drivers.kdc101 import KDC101
+from drivers.kdc101.apt import MsgId
+from instrument.clock import RealClock
+from instrument.errors import Disconnected, FramingError, InstrumentTimeout
+from instrument.stage import StageConfig
+from simulators.kdc101 import KDC101Simulator
+from simulators.kdc101.serve import TcpServer
+from tests.faultproxy import FaultProxy
+from tests.served import Served, serve
+
+CONFIG = StageConfig(reply_timeout_s=1.0)
+BOUND = CONFIG.reply_timeout_s + 1.5  # the deadline, and a loaded machine
+
+
+@pytest.fixture
+def proxied() -> Iterator[tuple[KDC101Simulator, FaultProxy, KDC101]]:
+    clock = RealClock()
+    sim = KDC101Simulator(clock)
+    server = TcpServer(sim).start()
+    port = int(server.address.rsplit(":", 1)[1])
+    try:
+        with FaultProxy(port, lifetime=60) as proxy:
+            stage = KDC101(f"socket://127.0.0.1:{proxy.port}", CONFIG, clock).open()
+            try:
+                yield sim, proxy, stage
+            finally:
+                stage.close()
+    finally:
+        server.stop()
+
+
+def timed_failure(call: Callable[[], object], error: type[Exception] | tuple[type[Exception], ...]
+                  ) -> float:
+    t0 = time.monotonic()
+    with pytest.raises(error):
+        call()
+    return time.monotonic() - t0
+
+
+def eventually(check: Callable[[], bool], within: float = 1.0) -> bool:
+    """``check()`` became true within ``within`` seconds (polled)."""
+    end = time.monotonic() + within
+    while not check():
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+@pytest.mark.parametrize(("fault", "error"), [
+    ("swallow", InstrumentTimeout),
+    ("garbage", FramingError),  # was 4.0 s at a 2 s reply timeout (two full waits)
+    ("truncate", FramingError),
+])
+def test_wire_fault_mid_move_stops_first_then_raises_within_the_deadline(
+        proxied: tuple[KDC101Simulator, FaultProxy, KDC101], fault: str,
+        error: type[Exception]) -> None:
+    sim, proxy, stage = proxied
+    stage.move_by(2e-3, wait=False)  # ~1 s of motion at 2.3 mm/s
+    getattr(proxy, fault)()
+    took = timed_failure(stage.wait_until_stopped, error)
+    assert took < BOUND, took
+    # The stop went out first (the server may take a moment to read it).
+    assert eventually(lambda: sim.received[-1].msg_id == MsgId.MOT_MOVE_STOP)
+    assert eventually(lambda: sim.velocity_at(sim.clock.now()) == 0.0)
+    proxy.heal()
+    assert not stage.status().busy  # back in step
+
+
+def test_a_reply_later_than_the_timeout_is_a_timeout(
+        proxied: tuple[KDC101Simulator, FaultProxy, KDC101]) -> None:
+    _, proxy, stage = proxied
+    proxy.delay(0.2)
+    assert stage.position_counts() == stage.position_counts()  # slow but in time
+    proxy.delay(CONFIG.reply_timeout_s + 2.0)
+    assert timed_failure(stage.position_counts, InstrumentTimeout) < BOUND
+
+
+def test_closed_connection_mid_move_is_a_disconnection(
+        proxied: tuple[KDC101Simulator, FaultProxy, KDC101]) -> None:
+    sim, proxy, stage = proxied
+    stage.move_by(2e-3, wait=False)
+    proxy.close()
+    assert timed_failure(stage.wait_until_stopped, Disconnected) < BOUND
+    proxy.heal()
+    with KDC101(f"socket://127.0.0.1:{proxy.port}", CONFIG, sim.clock) as again:
+        again.stop()
+        assert not again.status().busy
+
+
+@pytest.fixture
+def served() -> Iterator[Served]:
+    with serve("kdc101", duration=120) as s:
+        yield s
+
+
+def test_sigstopped_server_is_a_timeout_within_the_deadline(served: Served) -> None:
+    stage = KDC101(f"socket://127.0.0.1:{served.port}", CONFIG, RealClock()).open()
+    try:
+        served.pause()
+        try:
+            assert timed_failure(stage.position, InstrumentTimeout) < BOUND
+        finally:
+            served.resume()
+    finally:
+        stage.close()
+
+
+def test_killed_server_is_a_disconnection_within_the_deadline(served: Served) -> None:
+    stage = KDC101(f"socket://127.0.0.1:{served.port}", CONFIG, RealClock()).open()
+    try:
+        stage.move_by(1e-3, wait=False)
+        served.kill()
+        took = timed_failure(stage.wait_until_stopped, (Disconnected, InstrumentTimeout))
+        assert took < BOUND, took
+    finally:
+        stage.close()
