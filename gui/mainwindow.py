@@ -30,7 +30,7 @@ from gui.interlocks import InterlockBanner
 from gui.logpane import LogPane, QtLogHandler
 from gui.manual import Command, ManualPanel
 from gui.plots import CompressionPlots, LivePlots, ShearPlots, configure
-from gui.protocol_panel import ProtocolPanel
+from gui.protocol_panel import ProtocolPanel, Rehearse
 from gui.rigsession import RigSession
 from gui.runview import RunWindow
 from gui.services import Services
@@ -46,6 +46,7 @@ from protocols.events import (
     StepStarted,
 )
 from protocols.rig import Rig
+from protocols.rigfile import RigSpec
 
 #: The pace control of simulated time.
 PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100.0),
@@ -65,6 +66,7 @@ class MainWindow(QMainWindow):
         super().__init__(parent)
         configure()
         self.services = services
+        self._rehearse_for: tuple[RigSpec, Rehearse] | None = None
         self.session = RigSession(services, self)
         self.setWindowTitle("gelrig")
         self.instruments = InstrumentsPanel()
@@ -204,10 +206,22 @@ class MainWindow(QMainWindow):
                                          else self.compression_plots)
         self.pace_box.setEnabled(spec.simulated)
         self.protocol.set_pace(self.session.pace, real_time=not spec.simulated)
-        self.protocol.set_rig(spec.kind, spec.limits, connected=False)
+        self.protocol.set_rig(spec.kind, spec.limits, connected=False,
+                              rehearse=self._rehearser(spec))
         self.log.add(f"rig {spec.name} ({spec.source}), "
                      f"{'simulated' if spec.simulated else 'hardware'}: connecting")
         self.session.connect_rig()
+
+    def _rehearser(self, spec: RigSpec | None) -> Rehearse | None:
+        """The rehearsal on ``spec``'s twin (one callable per rig file, so the panel keeps a
+        finished rehearsal across connect and disconnect)."""
+        rehearse = self.services.rehearse
+        if spec is None or rehearse is None:
+            return None
+        if self._rehearse_for is None or self._rehearse_for[0] is not spec:
+            self._rehearse_for = (spec, lambda protocol, control: rehearse(protocol, spec,
+                                                                           control))
+        return self._rehearse_for[1]
 
     def connect_rig(self) -> None:
         self.instruments.set_state("connecting…")
@@ -225,7 +239,8 @@ class MainWindow(QMainWindow):
         self.instruments.set_connected(True)
         self.manual.set_kind(rig.kind)
         self.manual.set_enabled(True)
-        self.protocol.set_rig(rig.kind, rig.limits, connected=True)
+        self.protocol.set_rig(rig.kind, rig.limits, connected=True,
+                              rehearse=self._rehearser(self.session.spec))
         self.statusBar().showMessage("connected")
         self.log.add(f"connected: {', '.join(rig.identities)}")
 
@@ -235,7 +250,8 @@ class MainWindow(QMainWindow):
         self.instruments.set_connected(False)
         self.manual.set_enabled(False)
         spec = self.session.spec
-        self.protocol.set_rig(spec.kind if spec else None, spec.limits if spec else None, False)
+        self.protocol.set_rig(spec.kind if spec else None, spec.limits if spec else None, False,
+                              rehearse=self._rehearser(spec))
         self.statusBar().showMessage("disconnected")
         self.log.add("disconnected")
 
@@ -427,6 +443,7 @@ class MainWindow(QMainWindow):
             event.ignore()
             return
         self._timer.stop()
+        self.protocol.cancel_rehearsal()
         logging.getLogger().removeHandler(self._log_handler)
         self.session.shutdown()
         for window in self.run_windows:

@@ -3,12 +3,16 @@ run / pause / resume / abort, and follow the progress with a lab-time ETA."""
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
+import threading
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import Signal
+from PySide6.QtCore import QTimer, Signal
 from PySide6.QtGui import QFontDatabase
 from PySide6.QtWidgets import (
     QGroupBox,
@@ -24,10 +28,18 @@ from PySide6.QtWidgets import (
 
 from gui.protocol_form import ProtocolForm
 from instrument.units import lab_time
+from protocols.control import RunControl
 from protocols.events import Progress, RunState
 from protocols.plan import PlanSummary, dry_run
+from protocols.rehearsal import RehearsalReport
 from protocols.rig import CompressionLimits, ShearLimits
 from protocols.spec import ProtocolSpec
+
+log = logging.getLogger(__name__)
+
+Rehearse = Callable[[ProtocolSpec, RunControl], RehearsalReport]
+#: Quiet time (ms) after the last edit before a rehearsal starts.
+REHEARSAL_DELAY_MS = 400
 
 
 def eta(plan: PlanSummary, progress: Progress) -> tuple[float, float]:
@@ -50,6 +62,7 @@ class ProtocolPanel(QGroupBox):
     pause_clicked = Signal()
     resume_clicked = Signal()
     abort_clicked = Signal()
+    rehearsed = Signal(object, object)  # (the spec it ran, RehearsalReport or error text)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__("Protocol", parent)
@@ -100,6 +113,15 @@ class ProtocolPanel(QGroupBox):
         self.state = RunState.IDLE
         self.pause_requested = False
         self.plan: PlanSummary | None = None
+        self.rehearse_fn: Rehearse | None = None
+        self.rehearsal: RehearsalReport | None = None
+        self.rehearsal_error = ""
+        self._rehearsing: ProtocolSpec | None = None  # the spec a rehearsal runs or ran for
+        self._rehearsal_control: RunControl | None = None
+        self._rehearsal_timer = QTimer(self)
+        self._rehearsal_timer.setSingleShot(True)
+        self._rehearsal_timer.timeout.connect(self._start_rehearsal)
+        self.rehearsed.connect(self._on_rehearsed)
         self.why_not = "open a protocol file"
         self._update()
 
@@ -123,7 +145,10 @@ class ProtocolPanel(QGroupBox):
         self.form.set_table(table, source)
 
     def set_rig(self, kind: str | None, limits: CompressionLimits | ShearLimits | None,
-                connected: bool) -> None:
+                connected: bool, rehearse: Rehearse | None = None) -> None:
+        """The rig the protocol is planned for; ``rehearse`` runs a protocol on its twin."""
+        if rehearse is not self.rehearse_fn:
+            self.rehearse_fn, self._rehearsing, self.rehearsal = rehearse, None, None
         self.kind, self.limits, self.connected = kind, limits, connected
         self._update()
 
@@ -180,9 +205,11 @@ class ProtocolPanel(QGroupBox):
     def _update(self) -> None:
         spec = self.spec
         self.plan = None
+        if spec is not self._rehearsing:
+            self.rehearsal, self.rehearsal_error = None, ""
         if spec is not None and self.limits is not None:
             self.plan = dry_run(spec, self.limits)
-            self.plan_text.setPlainText(self.plan.text())
+            self.plan_text.setPlainText(self.plan.text() + self._rehearsal_text(spec))
         elif spec is not None:
             self.plan_text.setPlainText("connect a rig for the dry run (its limits)")
         else:
@@ -212,4 +239,56 @@ class ProtocolPanel(QGroupBox):
             return f"this protocol runs on a {spec.rig} rig; the rig is a {self.kind} rig"
         if self.plan is not None and self.plan.failed:
             return f"limit check failed: {self.plan.failed[0]}"
+        if self.rehearsal is not None and not self.rehearsal.ok:
+            return f"rehearsal failed: {self.rehearsal.failure()}"
         return ""
+
+    # ---- the rehearsal on the rig's twin --------------------------------------------------
+    def _rehearsal_text(self, spec: ProtocolSpec) -> str:
+        """The rehearsal's lines under the static plan; schedules one if none ran for spec."""
+        if self.rehearse_fn is None or self.active or (self.plan and self.plan.failed):
+            return ""
+        head = "\n\nRehearsal on the rig's twin (simulators, same limits, virtual time):\n"
+        if spec is self._rehearsing and self.rehearsal is not None:
+            return head + "\n".join(self.rehearsal.lines())
+        if spec is self._rehearsing and self.rehearsal_error:
+            return head + f"could not rehearse: {self.rehearsal_error}"
+        if spec is not self._rehearsing:
+            self._rehearsing = spec
+            self._rehearsal_timer.start(REHEARSAL_DELAY_MS)
+        return head + "rehearsing..."
+
+    def cancel_rehearsal(self) -> None:
+        """Abort a rehearsal still running (the protocol changed, or the window closes)."""
+        if self._rehearsal_control is not None:
+            self._rehearsal_control.abort("superseded")
+            self._rehearsal_control = None
+
+    def _start_rehearsal(self) -> None:
+        spec, rehearse = self._rehearsing, self.rehearse_fn
+        if spec is None or rehearse is None or spec is not self.spec:
+            return
+        self.cancel_rehearsal()
+        control = self._rehearsal_control = RunControl()
+
+        def work() -> None:
+            try:
+                result: object = rehearse(spec, control)
+            except Exception as exc:  # the twin could not be built: say so, keep the GUI
+                log.warning("rehearsal failed to run: %s", exc, exc_info=True)
+                result = f"{type(exc).__name__}: {exc}"
+            if control.abort_requested:
+                return
+            with contextlib.suppress(RuntimeError):  # the panel is gone (window closed)
+                self.rehearsed.emit(spec, result)
+
+        threading.Thread(target=work, name="rehearsal", daemon=True).start()
+
+    def _on_rehearsed(self, spec: object, result: object) -> None:
+        if spec is not self._rehearsing:
+            return  # the protocol changed meanwhile; a newer rehearsal is on its way
+        if isinstance(result, RehearsalReport):
+            self.rehearsal = result
+        else:
+            self.rehearsal_error = str(result)
+        self._update()

@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from instrument.clock import Clock
+from protocols.control import RunControl
+from protocols.rehearsal import RehearsalReport
 from protocols.rig import Rig
 from protocols.rigfile import RigSpec
 from protocols.spec import ProtocolSpec
@@ -23,7 +25,8 @@ class Services:
     """Everything the GUI needs from outside gui/.
 
     ``pace`` is the initial pace of simulated time (``math.inf``: as fast as possible);
-    ``analyze`` (optional) turns a finished run directory into a text summary.
+    ``analyze`` (optional) turns a finished run directory into a text summary; ``rehearse``
+    (optional) runs a protocol on the twin of a rig file and returns the measured figures.
     """
 
     rig_file: Path
@@ -35,3 +38,5 @@ class Services:
     rig_dir: Path | None = None
     protocol_dir: Path | None = None
     analyze: Callable[[Path], str] | None = None
+    #: the rehearsal of a protocol on the rig's twin (``gelrig plan``), run off the GUI thread
+    rehearse: Callable[[ProtocolSpec, RigSpec, RunControl], RehearsalReport] | None = None

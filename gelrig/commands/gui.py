@@ -16,6 +16,9 @@ from instrument.errors import ConfigError, GelrigError
 
 if TYPE_CHECKING:
     from gui.services import Services
+    from protocols.control import RunControl
+    from protocols.rehearsal import RehearsalReport
+    from protocols.rigfile import RigSpec
     from protocols.spec import ProtocolSpec
 
 PACES = {"1": 1.0, "10": 10.0, "100": 100.0, "inf": math.inf, "max": math.inf}
@@ -62,6 +65,18 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
         result = analyze_run(path)
         return f"{result.summary}\n\nreport: {result.report_path}"
 
+    def rehearsal(protocol: ProtocolSpec, spec: RigSpec, control: RunControl
+                  ) -> RehearsalReport:
+        """``gelrig plan``'s rehearsal: the protocol on the rig's twin, in virtual time."""
+        from gelrig.factory import build_twin
+        from protocols.rehearsal import rehearse
+
+        twin = build_twin(spec)
+        try:
+            return rehearse(twin, protocol, control=control)
+        finally:
+            twin.close()
+
     def run_dir(protocol: ProtocolSpec) -> Path:
         path = default_run_dir(protocol)
         return runs / path.name if runs is not None else path
@@ -76,6 +91,7 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
         rig_dir=RIG_DIR,
         protocol_dir=paper_protocol("compression").parent,
         analyze=analysis,
+        rehearse=rehearsal,
     )
 
 

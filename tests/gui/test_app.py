@@ -322,3 +322,23 @@ def test_readouts_follow_the_rig_and_time_runs_at_max_pace_when_idle(qtbot, open
     time.sleep(0.3)
     qtbot.waitUntil(lambda: clock.now() > t0 + 0.2, timeout=5_000)
     assert "force" in window.banner.text() and "2 N" in window.banner.text()
+
+
+def test_the_dry_run_rehearses_on_the_twin_and_a_failed_rehearsal_disables_run(qtbot,
+                                                                               open_window):
+    window = open_window()
+    panel = window.protocol
+    panel.set_table(short_compression(hold="2 s", confirm=0), "<test>")
+    qtbot.waitUntil(lambda: panel.rehearsal is not None, timeout=60_000)
+    assert panel.rehearsal.ok
+    text = panel.plan_text.toPlainText()
+    assert "Rehearsal on the rig's twin" in text and "rehearsal passed" in text
+    assert panel.run_button.isEnabled()
+    # the static limit checks pass, the rehearsal does not: no first touch for the hold
+    panel.set_table({"protocol": {"name": "hold only", "rig": "compression"},
+                     "step": [{"kind": "ramp_hold", "hold": "2 s"}]}, "<test>")
+    assert "rehearsing..." in panel.plan_text.toPlainText()
+    qtbot.waitUntil(lambda: panel.rehearsal is not None, timeout=60_000)
+    assert not panel.rehearsal.ok
+    assert not panel.run_button.isEnabled()
+    assert "rehearsal failed" in panel.why_not and "first_touch" in panel.why_not
