@@ -83,8 +83,14 @@ def grpc_options_for(address: str) -> tuple[nidaqmx.GrpcSessionOptions | None, g
     target = grpc_target(address)
     if target is None:
         return None, None
-    channel = grpc.insecure_channel(target)
+    channel = grpc.insecure_channel(target, options=CHANNEL_OPTIONS)
     return nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name=""), channel
+
+
+#: Each driver's channel keeps its own connections: grpc shares subchannels between channels
+#: to one address by default, so a driver opened after a lost link would inherit the old
+#: channel's reconnect back-off and fail at once with "unreachable".
+CHANNEL_OPTIONS = (("grpc.use_local_subchannel_pool", 1),)
 
 
 class Usb6001ForceSensor:
@@ -142,7 +148,8 @@ class Usb6001ForceSensor:
             return self
         channel: grpc.Channel | None = None
         if self._target is not None:
-            self._owned_channel = channel = grpc.insecure_channel(self._target)
+            self._owned_channel = channel = grpc.insecure_channel(self._target,
+                                                                  options=CHANNEL_OPTIONS)
         elif self._grpc is not None:
             channel = self._grpc.grpc_channel
         try:

@@ -61,6 +61,28 @@ class InProcessRpcError(grpc.RpcError):
     def trailing_metadata(self) -> tuple[_Metadatum, ...]:
         return self._context.trailing
 
+    def result(self) -> NoReturn:
+        """What grpc's interceptors ask of a failed call: raise it."""
+        raise self
+
+
+class _Unary:
+    """A unary multi-callable: plain calls and ``with_call`` (what an interceptor such as the
+    driver's deadlines uses); the timeout has nothing to bound in process."""
+
+    def __init__(self, handler: Callable[[Any, _Context], Any]):
+        self.handler = handler
+
+    def __call__(self, request: Any, *args: Any, **kwargs: Any) -> Any:
+        context = _Context()
+        try:
+            return self.handler(request, context)
+        except _Aborted:
+            raise InProcessRpcError(context) from None
+
+    def with_call(self, request: Any, *args: Any, **kwargs: Any) -> tuple[Any, _Unary]:
+        return self(request), self
+
 
 class InProcessChannel:
     """A ``grpc.Channel`` look-alike whose unary calls go straight to a servicer."""
@@ -69,17 +91,8 @@ class InProcessChannel:
         self.device = device
         self.servicer = Usb6001Servicer(device)
 
-    def unary_unary(self, method: str, *args: Any, **kwargs: Any) -> Callable[..., Any]:
-        handler = getattr(self.servicer, method.rsplit("/", 1)[-1])
-
-        def call(request: Any, *args: Any, **kwargs: Any) -> Any:
-            context = _Context()
-            try:
-                return handler(request, context)
-            except _Aborted:
-                raise InProcessRpcError(context) from None
-
-        return call
+    def unary_unary(self, method: str, *args: Any, **kwargs: Any) -> _Unary:
+        return _Unary(getattr(self.servicer, method.rsplit("/", 1)[-1]))
 
     def _unsupported(self, method: str, *args: Any, **kwargs: Any) -> Callable[..., Any]:
         def call(*args: Any, **kwargs: Any) -> Any:
