@@ -329,7 +329,7 @@ def test_the_dry_run_rehearses_on_the_twin_and_a_failed_rehearsal_disables_run(q
     window = open_window()
     panel = window.protocol
     panel.set_table(short_compression(hold="2 s", confirm=0), "<test>")
-    qtbot.waitUntil(lambda: panel.rehearsal is not None or panel.rehearsal_error,
+    qtbot.waitUntil(lambda: panel.rehearsal is not None or bool(panel.rehearsal_error),
                     timeout=60_000)
     assert not panel.rehearsal_error
     assert panel.rehearsal.ok
@@ -340,7 +340,7 @@ def test_the_dry_run_rehearses_on_the_twin_and_a_failed_rehearsal_disables_run(q
     panel.set_table({"protocol": {"name": "hold only", "rig": "compression"},
                      "step": [{"kind": "ramp_hold", "hold": "2 s"}]}, "<test>")
     assert "rehearsing..." in panel.plan_text.toPlainText()
-    qtbot.waitUntil(lambda: panel.rehearsal is not None or panel.rehearsal_error,
+    qtbot.waitUntil(lambda: panel.rehearsal is not None or bool(panel.rehearsal_error),
                     timeout=60_000)
     assert not panel.rehearsal.ok
     assert not panel.run_button.isEnabled()
