@@ -13,22 +13,9 @@ import pytest
 
 from gelrig.cli import main
 from instrument.store import RunDirectory, read_step
+from tests.samples import SHORT_COMPRESSION
 
-SHORT = """
-[protocol]
-name = "short compression"
-rig = "compression"
-
-[[step]]
-kind = "compression_contact_search"
-confirm = 0
-
-[[step]]
-kind = "ramp_hold"
-hold = "{hold}"
-rate = "100 Hz"
-terms = 1
-"""
+SHORT = SHORT_COMPRESSION
 
 
 @pytest.fixture

@@ -14,22 +14,9 @@ import pytest
 from gelrig.cli import main
 from instrument.store import RESERVE_NAME, RunDirectory, read_step
 from protocols.rigfile import default_rig
+from tests.samples import SHORT_COMPRESSION
 
-SHORT = """
-[protocol]
-name = "short compression"
-rig = "compression"
-
-[[step]]
-kind = "compression_contact_search"
-confirm = 0
-
-[[step]]
-kind = "ramp_hold"
-hold = "{hold}"
-rate = "100 Hz"
-terms = 1
-"""
+SHORT = SHORT_COMPRESSION
 
 #: The CLI with every file it writes limited to LIMIT bytes (EFBIG past it, as on a full
 #: disk) and a flush after every block, so the fault comes while samples arrive.

@@ -13,22 +13,9 @@ import pytest
 
 from instrument.errors import ConfigError
 from instrument.store import RunDirectory, check_metadata, check_step_file, read_step
+from tests.samples import SHORT_COMPRESSION
 
-SHORT = """
-[protocol]
-name = "short compression"
-rig = "compression"
-
-[[step]]
-kind = "compression_contact_search"
-confirm = 0
-
-[[step]]
-kind = "ramp_hold"
-hold = "60 s"
-rate = "100 Hz"
-terms = 1
-"""
+SHORT = SHORT_COMPRESSION.replace("{hold}", "60 s")
 HOLD = "steps/01_ramp_and_hold.h5"
 
 
