@@ -62,6 +62,39 @@ class InProcessRpcError(grpc.RpcError):
         return self._context.trailing
 
 
+class _UnaryCall:
+    """A unary multi-callable: call it, or ``with_call`` as ``grpc.intercept_channel`` does."""
+
+    def __init__(self, handler: Callable[[Any, Any], Any]):
+        self._handler = handler
+
+    def __call__(self, request: Any, *args: Any, **kwargs: Any) -> Any:
+        context = _Context()
+        try:
+            return self._handler(request, context)
+        except _Aborted:
+            raise InProcessRpcError(context) from None
+
+    def with_call(self, request: Any, *args: Any, **kwargs: Any) -> tuple[Any, _Done]:
+        return self(request), _Done()
+
+
+class _Done:
+    """The finished call ``with_call`` returns beside the response."""
+
+    def initial_metadata(self) -> tuple[_Metadatum, ...]:
+        return ()
+
+    def trailing_metadata(self) -> tuple[_Metadatum, ...]:
+        return ()
+
+    def code(self) -> grpc.StatusCode:
+        return grpc.StatusCode.OK
+
+    def details(self) -> str:
+        return ""
+
+
 class InProcessChannel:
     """A ``grpc.Channel`` look-alike whose unary calls go straight to a servicer."""
 
@@ -70,16 +103,7 @@ class InProcessChannel:
         self.servicer = Usb6001Servicer(device)
 
     def unary_unary(self, method: str, *args: Any, **kwargs: Any) -> Callable[..., Any]:
-        handler = getattr(self.servicer, method.rsplit("/", 1)[-1])
-
-        def call(request: Any, *args: Any, **kwargs: Any) -> Any:
-            context = _Context()
-            try:
-                return handler(request, context)
-            except _Aborted:
-                raise InProcessRpcError(context) from None
-
-        return call
+        return _UnaryCall(getattr(self.servicer, method.rsplit("/", 1)[-1]))
 
     def _unsupported(self, method: str, *args: Any, **kwargs: Any) -> Callable[..., Any]:
         def call(*args: Any, **kwargs: Any) -> Any:
