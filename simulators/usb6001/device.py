@@ -34,6 +34,10 @@ CONTINUOUS, FINITE = 10123, 10178
 GROUP_BY_CHANNEL, GROUP_BY_SCAN_NUMBER = 0, 1
 MEAS_VOLTAGE = 10322
 READ_ALL_AVAILABLE = -1
+# Read.RelativeTo and Read.OverWrite values.
+FIRST_SAMPLE, CURRENT_READ_POSITION, REFERENCE_TRIGGER = 10424, 10425, 10426
+FIRST_PRETRIGGER_SAMPLE, MOST_RECENT_SAMPLE = 10427, 10428
+OVERWRITE_UNREAD, DO_NOT_OVERWRITE_UNREAD = 10252, 10159
 
 # DAQmx error codes (nidaqmx.error_codes.DAQmxErrors) the simulator raises.
 SAMPLES_NO_LONGER_AVAILABLE = -200279
@@ -48,7 +52,15 @@ DUPLICATE_TASK = -200089
 ATTR_NOT_SUPPORTED = -200197
 READ_BUFFER_TOO_SMALL = -200229
 CANNOT_READ_TASK_NOT_RUNNING = -200473
+NEGATIVE_READ_SAMPLE_NUMBER = -200277
+NO_REF_TRIG_CONFIGURED = -200282
+WAIT_UNTIL_DONE_DOES_NOT_INDICATE_DONE = -200560
+ATTRIBUTE_NOT_SUPPORTED_IN_TASK_CONTEXT = -200452
+FUNCTION_NOT_SUPPORTED_FOR_DEVICE = -209876
+EVERY_N_SAMPS_TRANSFERRED_EVENT_NOT_SUPPORTED = -200980
 CAN_NOT_PERFORM_OP_WHILE_TASK_RUNNING = -200479
+CHAN_ALREADY_IN_TASK = -200489
+NO_CHANS_IN_TASK = -200478
 RESOURCE_RESERVED = -50103
 TRANSFER_ABORTED = -50405
 
@@ -75,9 +87,24 @@ ERROR_TEXT = {
     ATTR_NOT_SUPPORTED: "Specified property is not supported by the device or is not "
     "applicable to the task.",
     READ_BUFFER_TOO_SMALL: "Buffer is too small to fit read data.",
-    CANNOT_READ_TASK_NOT_RUNNING: "The task is not running: start it before reading.",
+    CANNOT_READ_TASK_NOT_RUNNING: "Read cannot be performed because the task is not running "
+    "and Read.AutoStart is false: start the task before reading, or set auto_start to True.",
+    NEGATIVE_READ_SAMPLE_NUMBER: "The sample number to read (position plus offset) is negative.",
+    NO_REF_TRIG_CONFIGURED: "Reading relative to the reference trigger or the first "
+    "pretrigger sample needs a reference trigger, and none is configured.",
+    WAIT_UNTIL_DONE_DOES_NOT_INDICATE_DONE: "Wait Until Done did not indicate that all samples "
+    "were acquired within the specified timeout.",
+    ATTRIBUTE_NOT_SUPPORTED_IN_TASK_CONTEXT: "Specified property is not supported by the "
+    "device or is not applicable to the task.",
+    FUNCTION_NOT_SUPPORTED_FOR_DEVICE: "The function is not supported by this device.",
+    EVERY_N_SAMPS_TRANSFERRED_EVENT_NOT_SUPPORTED: "Every N Samples Transferred from Buffer "
+    "event is not supported for input tasks: use Every N Samples Acquired into Buffer.",
     CAN_NOT_PERFORM_OP_WHILE_TASK_RUNNING: "Specified operation cannot be performed while the "
     "task is running.",
+    CHAN_ALREADY_IN_TASK: "Specified channel cannot be added to the task, because a channel "
+    "with the same name is already in the task.",
+    NO_CHANS_IN_TASK: "Specified operation cannot be performed when there are no channels "
+    "in the task.",
     RESOURCE_RESERVED: "The specified resource is reserved. The operation could not be "
     "completed as specified.",
     TRANSFER_ABORTED: "Transfer aborted: the task was stopped while a read was waiting.",
@@ -136,11 +163,16 @@ class AIChannel:
     terminal: int
     min_val: float
     max_val: float
+    description: str = ""
 
 
 @dataclass
 class SimTask:
-    """A DAQmx task on the simulated device."""
+    """A DAQmx task on the simulated device.
+
+    Without a sample clock (``timing_set`` false) the task is on demand: each read takes
+    fresh samples now. ``auto_started``: a read started it and stops it when done with it.
+    """
 
     name: str
     channels: list[AIChannel] = field(default_factory=list)
@@ -149,20 +181,39 @@ class SimTask:
     samps_per_chan: int = 1000
     timing_set: bool = False
     running: bool = False
+    auto_started: bool = False
     t0: float = 0.0
     read_pos: int = 0
     overflowed: bool = False
     buffer_size: int = 1000
+    buffer_request: int | None = None
+    # Read properties (in_stream).
+    auto_start: bool = True
+    read_all_avail: bool = False
+    relative_to: int = CURRENT_READ_POSITION
+    offset: int = 0
+    overwrite: int = DO_NOT_OVERWRITE_UNREAD
+    # Samples computed so far (sources are stateful, so each is computed once).
+    gen_pos: int = 0
+    hist: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+    hist_start: int = 0
+    on_demand_next: float = -math.inf
 
     def acquired(self, now: float) -> int:
         """Samples per channel acquired by ``now`` (sample k exists at t0 + k / rate)."""
-        if not self.running or now < self.t0:
+        if not self.running or not self.timing_set or now < self.t0:
             return 0
         n = math.floor((now - self.t0) * self.rate + 1e-6) + 1
         return min(n, self.samps_per_chan) if self.sample_mode == FINITE else n
 
+    def done(self, now: float) -> bool:
+        """DAQmx Is Task Done: not running, on demand, or a finite acquisition complete."""
+        if not self.running or not self.timing_set:
+            return True
+        return self.sample_mode == FINITE and self.acquired(now) >= self.samps_per_chan
 
-_CHAN = re.compile(r"^\s*(?P<dev>[^/\s]+)/ai(?P<a>\d+)(?::(?P<b>\d+))?\s*$", re.IGNORECASE)
+
+_CHAN = re.compile(r"^\s*/?(?P<dev>[^/\s]+)/ai(?P<a>\d+)(?::(?P<b>\d+))?\s*$", re.IGNORECASE)
 
 
 class SimulatedUsb6001:
@@ -252,30 +303,40 @@ class SimulatedUsb6001:
             names = [p.strip() for p in assigned.split(",")] if assigned else []
             if names and len(names) != len(physicals):
                 names = [f"{assigned}{i}" for i in range(len(physicals))]
-            for i, (full, short) in enumerate(physicals):
-                name = names[i] if names else full
-                task.channels.append(AIChannel(name, short, terminal, min_val, max_val))
+            new = [AIChannel(names[i] if names else full, short, terminal, min_val, max_val)
+                   for i, (full, short) in enumerate(physicals)]
+            taken = {c.name.lower() for c in task.channels}
+            for chan in new:
+                if chan.name.lower() in taken:
+                    raise DaqmxError(CHAN_ALREADY_IN_TASK, f"Channel Name: {chan.name}")
+                taken.add(chan.name.lower())
+            task.channels.extend(new)
+
+    def check_device(self, name: str) -> None:
+        """DAQmx device names are not case sensitive: "dev1" is "Dev1"."""
+        if name.strip().lower() != self.spec.name.lower():
+            raise DaqmxError(INVALID_DEVICE_ID, f"Device Specified: {name}\n"
+                             f"Devices in System: {self.spec.name}")
 
     def _parse_channels(self, text: str, terminal: int) -> list[tuple[str, str]]:
         count = self.spec.rse_channels if terminal == RSE else self.spec.diff_channels
+        dev = self.spec.name
         out: list[tuple[str, str]] = []
         for part in text.split(","):
             m = _CHAN.match(part)
             if m is None:
                 raise DaqmxError(PHYSICAL_CHAN_DOES_NOT_EXIST, f"Physical Channel: {part.strip()}")
-            if m["dev"] != self.spec.name:
-                raise DaqmxError(INVALID_DEVICE_ID, f"Device Specified: {m['dev']}\n"
-                                 f"Devices in System: {self.spec.name}")
+            self.check_device(m["dev"])
             a = int(m["a"])
             b = int(m["b"]) if m["b"] is not None else a
             step = 1 if b >= a else -1
             for i in range(a, b + step, step):
                 if i >= count:
                     raise DaqmxError(PHYSICAL_CHAN_DOES_NOT_EXIST,
-                                     f"Physical Channel: {m['dev']}/ai{i}\nThe "
+                                     f"Physical Channel: {dev}/ai{i}\nThe "
                                      f"{self.spec.product_type} has ai0..ai{count - 1} "
                                      f"{'RSE' if terminal == RSE else 'differential'}.")
-                out.append((f"{m['dev']}/ai{i}", f"ai{i}"))
+                out.append((f"{dev}/ai{i}", f"ai{i}"))
         return out
 
     def cfg_timing(
@@ -298,36 +359,67 @@ class SimulatedUsb6001:
             task.rate, task.sample_mode = float(rate), sample_mode
             task.samps_per_chan, task.timing_set = int(samps_per_chan), True
 
+    def set_on_demand(self, task_name: str) -> None:
+        """Samp.TimingType = On Demand: drop the sample clock."""
+        with self._lock:
+            task = self.task(task_name)
+            if task.running:
+                raise DaqmxError(CAN_NOT_PERFORM_OP_WHILE_TASK_RUNNING)
+            task.timing_set = False
+
     def max_rate(self, task_name: str) -> float:
         """Sample clock limit for the task: the aggregate rate over its channels."""
         with self._lock:
             n = max(1, len(self.task(task_name).channels))
         return self.spec.max_aggregate_rate / n
 
-    def start(self, task_name: str) -> None:
+    def set_buffer_size(self, task_name: str, size: int) -> None:
+        """Buf.Input.BufSize: the caller's size replaces DAQmx's rule at the next start."""
         with self._lock:
             task = self.task(task_name)
             if task.running:
-                return
-            if not task.channels or not task.timing_set:
-                raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
-                                 "A task needs channels and a sample clock before it starts.")
-            n_chan = len(task.channels)
-            limit = self.spec.max_aggregate_rate / n_chan
-            if task.rate > limit:
-                raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
-                                 f"Property: SampClk.Rate\nRequested Value: {task.rate:g}\n"
-                                 f"Maximum Value: {limit:g} ({self.spec.max_aggregate_rate:g} "
-                                 f"S/s aggregate over {n_chan} channels)")
-            if any(t.running for t in self._tasks.values()):
-                raise DaqmxError(RESOURCE_RESERVED, f"Device: {self.spec.name}\nTask Name: "
-                                 f"{task_name}\nAnother analog input task is running.")
-            task.buffer_size = self._buffer_size(task)
-            task.read_pos, task.overflowed = 0, False
-            task.t0 = self.clock.now()
-            task.running = True
+                raise DaqmxError(CAN_NOT_PERFORM_OP_WHILE_TASK_RUNNING,
+                                 "Property: Buf.Input.BufSize")
+            if size < 2:
+                raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Property: Buf.Input.BufSize\n"
+                                 f"Requested Value: {size}\nMinimum Value: 2")
+            task.buffer_request = int(size)
+
+    def buffer_size(self, task_name: str) -> int:
+        """The buffer (samples per channel) the task has, or will have when it starts."""
+        with self._lock:
+            task = self.task(task_name)
+            return task.buffer_size if task.running else self._buffer_size(task)
+
+    def start(self, task_name: str) -> None:
+        with self._lock:
+            self._start(self.task(task_name))
+
+    def _start(self, task: SimTask) -> None:
+        if task.running:
+            return
+        if not task.channels:
+            raise DaqmxError(NO_CHANS_IN_TASK, f"Task Name: {task.name}")
+        n_chan = len(task.channels)
+        limit = self.spec.max_aggregate_rate / n_chan
+        if task.timing_set and task.rate > limit:
+            raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
+                             f"Property: SampClk.Rate\nRequested Value: {task.rate:g}\n"
+                             f"Maximum Value: {limit:g} ({self.spec.max_aggregate_rate:g} "
+                             f"S/s aggregate over {n_chan} channels)")
+        if any(t.running for t in self._tasks.values()):
+            raise DaqmxError(RESOURCE_RESERVED, f"Device: {self.spec.name}\nTask Name: "
+                             f"{task.name}\nAnother analog input task is running.")
+        task.buffer_size = self._buffer_size(task)
+        task.read_pos, task.overflowed, task.auto_started = 0, False, False
+        task.gen_pos, task.hist_start = 0, 0
+        task.hist = np.empty((n_chan, 0))
+        task.t0 = self.clock.now()
+        task.running = True
 
     def _buffer_size(self, task: SimTask) -> int:
+        if task.buffer_request is not None:
+            return task.buffer_request
         if self.buffer_override is not None:
             return self.buffer_override
         if task.sample_mode == FINITE:
@@ -336,7 +428,52 @@ class SimulatedUsb6001:
 
     def stop(self, task_name: str) -> None:
         with self._lock:
-            self.task(task_name).running = False
+            task = self.task(task_name)
+            task.running = task.auto_started = False
+
+    def reset(self) -> None:
+        """DAQmx Reset Device: abort every task (they stay, stopped) and reset the device."""
+        with self._lock:
+            for task in self._tasks.values():
+                task.running = task.auto_started = False
+
+    def task_names(self) -> list[str]:
+        with self._lock:
+            return list(self._tasks)
+
+    # --- task state ------------------------------------------------------------------------
+
+    def is_done(self, task_name: str) -> bool:
+        with self._lock:
+            return self.task(task_name).done(self.clock.now())
+
+    def wait_until_done(self, task_name: str, timeout: float) -> None:
+        """Wait on the clock until the task is done, up to ``timeout`` s (-1: no limit).
+
+        A continuous task is never done: it waits ``timeout`` and fails with -200560, and
+        with no limit it fails at once (the device would wait forever).
+        """
+        with self._lock:
+            task = self.task(task_name)
+            now = self.clock.now()
+            if task.done(now):
+                return
+            if task.sample_mode == FINITE:
+                target = task.t0 + (task.samps_per_chan - 1) / task.rate
+            else:
+                target = math.inf
+            limit = math.inf if timeout < 0 else now + timeout
+        if target <= limit:
+            self.clock.sleep_until(target)
+            return
+        if math.isfinite(limit):
+            self.clock.sleep_until(limit)
+        with self._lock:
+            if self._tasks.get(task_name) is not task or task.done(self.clock.now()):
+                return
+        forever = "" if math.isfinite(limit) else "\nA continuous task is never done."
+        raise DaqmxError(WAIT_UNTIL_DONE_DOES_NOT_INDICATE_DONE,
+                         f"Task Name: {task_name}\nTimeout: {timeout} s{forever}")
 
     # --- reading ---------------------------------------------------------------------------
 
@@ -353,35 +490,87 @@ class SimulatedUsb6001:
     def read(self, task_name: str, n: int, timeout: float) -> tuple[FloatArray, int]:
         """Read ``n`` samples per channel (-1: all available); return (channels x n, n).
 
-        Waits on the clock for samples not yet acquired, up to ``timeout`` (s, -1 = forever).
+        A task that is not running is started by the read (Read.AutoStart, on by default)
+        and stopped when the read is done with it: after each read on demand or continuous,
+        after the last sample of a finite acquisition. On demand (no sample clock) the
+        samples are taken now. Otherwise the read waits on the clock for samples not yet
+        acquired, up to ``timeout`` (s, -1 = forever), starting where Read.RelativeTo and
+        Read.Offset say.
         """
         with self._lock:
             task = self.task(task_name)
             if not task.running:
-                raise DaqmxError(CANNOT_READ_TASK_NOT_RUNNING, f"Task Name: {task_name}")
-            self._check_overflow(task)
+                if not task.auto_start:
+                    raise DaqmxError(CANNOT_READ_TASK_NOT_RUNNING, f"Task Name: {task_name}",
+                                     samps_read=0)
+                self._start(task)
+                task.auto_started = True
+            if not task.timing_set:
+                data, last = self._read_on_demand(task, n)
+            else:
+                last = None
+        if last is not None:
+            self.clock.sleep_until(last)
+            return data, data.shape[1]
+        return self._read_clocked(task, n, timeout)
+
+    def _read_on_demand(self, task: SimTask, n: int) -> tuple[FloatArray, float]:
+        """``n`` fresh samples (-1: one) at the aggregate rate from now; the last one's time."""
+        n = 1 if n == READ_ALL_AVAILABLE else n
+        dt = len(task.channels) / self.spec.max_aggregate_rate
+        t_first = max(self.clock.now(), task.on_demand_next)
+        data = self._generate(task, t_first, dt, n)
+        task.on_demand_next = t_first + n * dt
+        if task.auto_started:
+            task.running = task.auto_started = False
+        return data, t_first + max(n - 1, 0) * dt
+
+    def _read_start(self, task: SimTask, acquired: int) -> int:
+        if task.relative_to in (REFERENCE_TRIGGER, FIRST_PRETRIGGER_SAMPLE):
+            raise DaqmxError(NO_REF_TRIG_CONFIGURED, "Property: Read.RelativeTo", samps_read=0)
+        base = {FIRST_SAMPLE: 0, MOST_RECENT_SAMPLE: acquired}.get(task.relative_to,
+                                                                   task.read_pos)
+        start = base + task.offset
+        if start < 0:
+            raise DaqmxError(NEGATIVE_READ_SAMPLE_NUMBER,
+                             f"Read.RelativeTo position: {base}\nRead.Offset: {task.offset}",
+                             samps_read=0)
+        return start
+
+    def _read_clocked(self, task: SimTask, n: int, timeout: float) -> tuple[FloatArray, int]:
+        with self._lock:
+            if task.overwrite == DO_NOT_OVERWRITE_UNREAD:
+                self._check_overflow(task)
             now = self.clock.now()
+            acquired = task.acquired(now)
+            start = self._read_start(task, acquired)
             if n == READ_ALL_AVAILABLE:
-                if task.sample_mode == FINITE:
-                    n = task.samps_per_chan - task.read_pos
-                else:
-                    n = task.acquired(now) - task.read_pos
-            if task.sample_mode == FINITE and task.read_pos + n > task.samps_per_chan:
+                whole = task.sample_mode == FINITE and not task.read_all_avail
+                n = max(0, (task.samps_per_chan if whole else acquired) - start)
+            if task.sample_mode == FINITE and start + n > task.samps_per_chan:
                 raise DaqmxError(SAMPLES_WILL_NEVER_BE_AVAILABLE,
-                                 f"Samples requested: {n}; remaining: "
-                                 f"{task.samps_per_chan - task.read_pos}", samps_read=0)
-            deadline = task.t0 + (task.read_pos + n - 1) / task.rate
-            short = task.acquired(now) < task.read_pos + n
+                                 f"Samples requested: {n} from sample {start}; the acquisition "
+                                 f"ends at sample {task.samps_per_chan}", samps_read=0)
+            if start < acquired - task.buffer_size:
+                raise DaqmxError(SAMPLES_NO_LONGER_AVAILABLE,
+                                 f"Samples overwritten before sample {acquired - task.buffer_size}"
+                                 f"; read from sample {start}\nBuffer size: {task.buffer_size} "
+                                 f"samples per channel\nTask Name: {task.name}", samps_read=0)
+            deadline = task.t0 + (start + n - 1) / task.rate
+            short = acquired < start + n
         if short:
             limit = math.inf if timeout < 0 else now + timeout
             self.clock.sleep_until(min(deadline, limit))
         with self._lock:
-            if self._tasks.get(task_name) is not task or not task.running:
-                raise DaqmxError(TRANSFER_ABORTED, f"Task Name: {task_name}", samps_read=0)
+            if self._tasks.get(task.name) is not task or not task.running:
+                raise DaqmxError(TRANSFER_ABORTED, f"Task Name: {task.name}", samps_read=0)
             # No overflow check here: a waiting read drains the buffer as samples arrive.
-            got = min(n, task.acquired(self.clock.now()) - task.read_pos)
-            data = self._samples(task, got)
-            task.read_pos += got
+            got = max(0, min(n, task.acquired(self.clock.now()) - start))
+            data = self._samples(task, start, got)
+            task.read_pos = start + got
+            if task.auto_started and (task.sample_mode != FINITE
+                                      or task.read_pos >= task.samps_per_chan):
+                task.running = task.auto_started = False
             if got < n:
                 raise DaqmxError(SAMPLES_NOT_YET_AVAILABLE,
                                  f"Attempted to read samples: {n}\nAcquired samples: {got}\n"
@@ -397,13 +586,35 @@ class SimulatedUsb6001:
                              f"Buffer size: {task.buffer_size} samples per channel\n"
                              f"Task Name: {task.name}", samps_read=0)
 
-    def _samples(self, task: SimTask, n: int) -> FloatArray:
-        """ADC codes as volts for samples read_pos .. read_pos + n of every channel."""
+    def _samples(self, task: SimTask, start: int, n: int) -> FloatArray:
+        """Samples ``start .. start + n`` of every channel, each computed once and kept while
+        the buffer holds it (a read relative to the first or most recent sample re-reads)."""
+        end = start + n
+        if end > task.gen_pos:
+            keep = max(task.buffer_size, n)
+            first = max(task.gen_pos, end - keep)
+            dt = 1.0 / task.rate
+            block = self._generate(task, task.t0 + first * dt, dt, end - first)
+            if first > task.gen_pos:
+                task.hist, task.hist_start = block, first
+            else:
+                task.hist = np.concatenate([task.hist, block], axis=1)
+            task.gen_pos = end
+            drop = task.hist.shape[1] - keep
+            if drop > 0:
+                task.hist = task.hist[:, drop:]
+                task.hist_start += drop
+        i = start - task.hist_start
+        if i < 0:
+            raise DaqmxError(SAMPLES_NO_LONGER_AVAILABLE, f"Sample {start} was overwritten.",
+                             samps_read=0)
+        return task.hist[:, i:i + n].copy()
+
+    def _generate(self, task: SimTask, t_first: float, dt: float, n: int) -> FloatArray:
+        """ADC codes as volts for ``n`` samples of every channel at ``t_first + k dt``."""
         out = np.empty((len(task.channels), n))
         if n == 0:
             return out
-        dt = 1.0 / task.rate
-        t_first = task.t0 + task.read_pos * dt
         clip, lsb = self.spec.clip_volts, self.spec.lsb
         for row, chan in zip(out, task.channels, strict=True):
             v = self.sources[chan.physical].volts(t_first, dt, n)

@@ -5,7 +5,13 @@ Error conventions follow the client's interpreter (nidaqmx/_grpc_interpreter.py)
 ends with trailing metadata ``ni-error`` = the DAQmx code (plus ``ni-samps-per-chan-read`` for
 reads), so the client raises DaqError / DaqReadError with that code; a read that times out
 answers normally with ``status`` = -200284 and the samples it did get, as the device returns
-them. RPCs outside the subset stay UNIMPLEMENTED (the client raises RpcError).
+them. Every RPC of the service this simulator does not implement answers DAQmx -209876
+naming the function, and every property it does not know answers -200197 naming the property
+(docs/decisions/0120); none answers a bare UNIMPLEMENTED.
+
+Properties are one table, :meth:`Usb6001Servicer._properties`: (group, id) -> getter / setter,
+served by generic Get/Set/Reset<Group>Attribute<Type> handlers generated from the service
+descriptor, like the catch-all.
 
 Named sessions follow the server's session initialisation behaviour (ADR 0061): a CreateTask
 with a session name that exists attaches to it (AUTO, ATTACH_TO_EXISTING; the response says
@@ -17,10 +23,17 @@ session-management examples; the real server's are UNVERIFIED.
 # ruff: noqa: N802  (RPC method names are fixed by the NiDAQmx gRPC service)
 from __future__ import annotations
 
-from collections.abc import Callable
+import functools
+import re
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, NoReturn, TypeAlias, TypeVar
 
 import grpc
+import nidaqmx
 from nidaqmx._stubs import nidaqmx_pb2 as pb
 from nidaqmx._stubs import nidaqmx_pb2_grpc as pb_grpc
 from session_pb2 import (
@@ -31,14 +44,25 @@ from session_pb2 import (
 
 from simulators.usb6001.device import (
     ATTR_NOT_SUPPORTED,
+    ATTRIBUTE_NOT_SUPPORTED_IN_TASK_CONTEXT,
+    CURRENT_READ_POSITION,
+    DO_NOT_OVERWRITE_UNREAD,
     ERROR_TEXT,
+    EVERY_N_SAMPS_TRANSFERRED_EVENT_NOT_SUPPORTED,
+    FINITE,
+    FIRST_PRETRIGGER_SAMPLE,
+    FIRST_SAMPLE,
+    FUNCTION_NOT_SUPPORTED_FOR_DEVICE,
     GROUP_BY_CHANNEL,
     GROUP_BY_SCAN_NUMBER,
     INVALID_ATTRIBUTE_VALUE,
-    INVALID_DEVICE_ID,
     MEAS_VOLTAGE,
+    MOST_RECENT_SAMPLE,
+    OVERWRITE_UNREAD,
     READ_BUFFER_TOO_SMALL,
+    REFERENCE_TRIGGER,
     SAMPLES_NOT_YET_AVAILABLE,
+    VOLTS,
     AIChannel,
     DaqmxError,
     SimTask,
@@ -52,6 +76,16 @@ ONBOARD_FIFO = 2047
 
 _TASK_START, _TASK_STOP, _TASK_ABORT = 0, 1, 6
 CHANNEL_TYPE_AI = 10100
+SAMPLE_CLOCK_TIMING, ON_DEMAND_TIMING = 10388, 10390
+RISING, FALLING = 10280, 10171
+BUS_USB = 12586  # nidaqmx.constants.BusType.USB
+PRODUCT_CATEGORY_USB_DAQ = 14646  # ProductCategory.USBDAQ (UNVERIFIED for the 6001)
+RESOLUTION_BITS = 10109
+USB_BULK = 12590
+ACQUIRED_INTO_BUFFER = 1
+ONBOARD_CLOCK = "OnboardClock"
+#: Real time between checks of an every-N-samples event stream (s).
+EVENT_POLL = 0.005
 
 R = TypeVar("R")
 Context: TypeAlias = grpc.ServicerContext
@@ -66,8 +100,76 @@ def _abort(context: Context, fault: DaqmxError) -> NoReturn:
     raise AssertionError("unreachable: context.abort raises")  # pragma: no cover
 
 
-def _unsupported(attribute: int) -> DaqmxError:
-    return DaqmxError(ATTR_NOT_SUPPORTED, f"Property ID: {attribute:#x}")
+_ATTRIBUTE_RPC = re.compile(r"^(Get|Set|Reset)(\w+?)Attribute(\w*)$")
+_PROPERTY_CALL = re.compile(
+    r"_interpreter\.(?:get|set|reset)_(\w+?)_attribute\w*\(.*?(0x[0-9a-fA-F]+)\)")
+_GROUPS = {"system_info": "SystemInfo", "device": "Device", "task": "Task", "chan": "Chan",
+           "timing": "Timing", "buffer": "Buffer", "read": "Read", "trig": "Trig",
+           "write": "Write", "exported_signal": "ExportedSignal", "cal_info": "CalInfo",
+           "physical_chan": "PhysicalChan", "scale": "Scale", "watchdog": "Watchdog",
+           "persisted_chan": "PersistedChan", "persisted_task": "PersistedTask",
+           "persisted_scale": "PersistedScale"}
+
+
+@functools.cache
+def _property_names() -> dict[tuple[str, int], str]:
+    """(group, id) -> the nidaqmx property ("Timing.samp_clk_src"), read from its source."""
+    names: dict[tuple[str, int], str] = {}
+    root = Path(nidaqmx.__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        cls = prop = ""
+        for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+            if line.startswith("class "):
+                cls = line[6:].split("(")[0].split(":")[0].strip()
+            elif line.lstrip().startswith("def "):
+                prop = line.strip()[4:].split("(")[0]
+            elif (m := _PROPERTY_CALL.search(line)) and m[1] in _GROUPS:
+                names.setdefault((_GROUPS[m[1]], int(m[2], 16)), f"{cls.lstrip('_')}.{prop}")
+    return names
+
+
+def _property_label(group: str, attribute: int) -> str:
+    name = _property_names().get((group, attribute))
+    return f"{attribute:#x}" + (f" (nidaqmx {name})" if name else "")
+
+
+def _unsupported(rpc: str, group: str, attribute: int) -> DaqmxError:
+    label = _property_label(group, attribute)
+    return DaqmxError(ATTR_NOT_SUPPORTED, f"DAQmx{rpc}, property {label}: the simulated "
+                      f"USB-6001 does not support DAQmx{rpc} of this property")
+
+
+def _no_function(rpc: str) -> DaqmxError:
+    return DaqmxError(FUNCTION_NOT_SUPPORTED_FOR_DEVICE,
+                      f"DAQmx{rpc}: the simulated USB-6001 does not support DAQmx{rpc}")
+
+
+def _choice(prop: str, value: int, allowed: dict[str, int]) -> int:
+    """``value`` if it is one of ``allowed`` (DAQmx name -> value), else DAQmx -200077."""
+    if value not in allowed.values():
+        listed = ", ".join(f"{v} ({k})" for k, v in allowed.items())
+        raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
+                         f"Property: {prop}\nRequested Value: {value}\nPossible Values: {listed}")
+    return value
+
+
+def _constant(value: Any) -> Callable[[Any], Any]:
+    return lambda request: value
+
+
+@dataclass(frozen=True)
+class Prop:
+    """One DAQmx property: its name, value type (the RPC suffix), getter and setter.
+
+    ``get`` and ``set`` take the request (task, channel or device in it); ``reset`` is the
+    value a Reset<Group>Attribute sets (None: the setter's own default).
+    """
+
+    name: str
+    kind: str
+    get: Callable[[Any], Any]
+    set: Callable[[Any, Any], None] | None = None
+    reset: Any = None
 
 
 class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
@@ -75,6 +177,10 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
 
     def __init__(self, device: SimulatedUsb6001):
         self.device = device
+        self.properties = self._properties()
+        self._event_lock = threading.Lock()
+        self._events: dict[str, int] = {}  # task -> registration number of its N-samples event
+        self._registrations = 0
 
     def _run(self, context: Context, fn: Callable[[], R]) -> R:
         try:
@@ -85,50 +191,264 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
     def _task(self, session: Session) -> SimTask:
         return self.device.task(session.name)
 
-    # --- system, device ----------------------------------------------------------------------
+    # --- properties --------------------------------------------------------------------------
 
-    def GetSystemInfoAttributeUInt32(self, request: Any, context: Context) -> Any:
+    def _properties(self) -> dict[tuple[str, int], Prop]:
+        dev, spec = self.device, self.device.spec
+        name = spec.name
         versions = dict(zip((0x1272, 0x1923, 0x2F22), DRIVER_VERSION, strict=True))
 
-        def get() -> Any:
-            if request.attribute_raw not in versions:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetSystemInfoAttributeUInt32Response(value=versions[request.attribute_raw])
+        def task(r: Any) -> SimTask:
+            return self._task(r.task)
 
-        return self._run(context, get)
+        def chan(fn: Callable[[AIChannel], Any]) -> Callable[[Any], Any]:
+            return lambda r: self._chan_value(task(r), r.channel, fn)
 
-    def GetSystemInfoAttributeString(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            if request.attribute_raw != 0x193B:  # Sys.DevNames
-                raise _unsupported(request.attribute_raw)
-            return pb.GetSystemInfoAttributeStringResponse(value=self.device.spec.name)
+        def set_chan(fn: Callable[[AIChannel, Any], None]) -> Callable[[Any, Any], None]:
+            def setter(r: Any, v: Any) -> None:
+                for c in self._channels(task(r), r.channel):
+                    fn(c, v)
+            return setter
 
-        return self._run(context, get)
+        def no_lowpass(r: Any, v: Any = None) -> NoReturn:
+            raise DaqmxError(ATTRIBUTE_NOT_SUPPORTED_IN_TASK_CONTEXT,
+                             f"Property: AI.Lowpass.Enable\nChannel Name: {r.channel}\n"
+                             f"The {spec.product_type} has no lowpass filter.")
 
-    def _check_device(self, name: str) -> None:
-        if name != self.device.spec.name:
-            raise DaqmxError(INVALID_DEVICE_ID, f"Device Specified: {name}")
+        def retime(r: Any, rate: float | None = None, mode: int | None = None,
+                   samps: int | None = None) -> None:
+            t = task(r)
+            dev.cfg_timing(t.name, t.rate if rate is None else rate,
+                           t.sample_mode if mode is None else mode,
+                           t.samps_per_chan if samps is None else samps)
 
-    def GetDeviceAttributeString(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            self._check_device(request.device_name)
-            if request.attribute_raw != 0x631:  # Dev.ProductType
-                raise _unsupported(request.attribute_raw)
-            return pb.GetDeviceAttributeStringResponse(value=self.device.spec.product_type)
+        def timing_type(r: Any, v: int) -> None:
+            _choice("SampTimingType", v, {"SampleClock": SAMPLE_CLOCK_TIMING,
+                                          "OnDemand": ON_DEMAND_TIMING})
+            if v == ON_DEMAND_TIMING:
+                dev.set_on_demand(task(r).name)
+            else:
+                retime(r)
 
-        return self._run(context, get)
+        def clock_source(r: Any, v: str) -> None:
+            if v.strip().lower() not in ("", ONBOARD_CLOCK.lower()):
+                raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
+                                 f"Property: SampClk.Src\nRequested Value: {v}\nThe simulated "
+                                 f"{spec.product_type} clocks its input from {ONBOARD_CLOCK} only.")
 
-    def GetDeviceAttributeUInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            self._check_device(request.device_name)
-            if request.attribute_raw != 0x632:  # Dev.SerialNum
-                raise _unsupported(request.attribute_raw)
-            return pb.GetDeviceAttributeUInt32Response(value=self.device.spec.serial)
+        def rising_only(r: Any, v: int) -> None:
+            _choice("SampClk.ActiveEdge", v, {"Rising": RISING})
 
-        return self._run(context, get)
+        def set_field(field: str, check: Callable[[Any], Any] = lambda v: v
+                      ) -> Callable[[Any, Any], None]:
+            return lambda r, v: setattr(task(r), field, check(v))
+
+        ai = ", ".join(f"{name}/ai{i}" for i in range(spec.rse_channels))
+        lines0 = [f"{name}/port0/line{i}" for i in range(8)]
+        lines = lines0 + [f"{name}/port1/line{i}" for i in range(4)] + [f"{name}/port2/line0"]
+        terminals = [f"/{name}/PFI0", f"/{name}/PFI1", f"/{name}/ai/SampleClock",
+                     f"/{name}/ai/StartTrigger", f"/{name}/ao/SampleClock",
+                     f"/{name}/ao/StartTrigger", f"/{name}/Ctr0Source", f"/{name}/Ctr0Gate",
+                     f"/{name}/Ctr0InternalOutput", f"/{name}/100kHzTimebase",
+                     f"/{name}/20MHzTimebase"]
+
+        table: dict[tuple[str, int], Prop] = {
+            # system
+            **{("SystemInfo", k): Prop(f"Sys.Version{i}", "UInt32", _constant(v))
+               for i, (k, v) in enumerate(versions.items())},
+            ("SystemInfo", 0x193B): Prop("Sys.DevNames", "String", lambda r: name),
+            ("SystemInfo", 0x1267): Prop("Sys.Tasks", "String", lambda r: ""),
+            ("SystemInfo", 0x1265): Prop("Sys.GlobalChans", "String", lambda r: ""),
+            ("SystemInfo", 0x1266): Prop("Sys.Scales", "String", lambda r: ""),
+            # device
+            ("Device", 0x631): Prop("Dev.ProductType", "String", lambda r: spec.product_type),
+            ("Device", 0x632): Prop("Dev.SerialNum", "UInt32", lambda r: spec.serial),
+            ("Device", 0x22CA): Prop("Dev.IsSimulated", "Bool", lambda r: True),
+            ("Device", 0x2326): Prop("Dev.BusType", "Int32", lambda r: BUS_USB),
+            ("Device", 0x29A9): Prop("Dev.ProductCategory", "Int32",
+                                     lambda r: PRODUCT_CATEGORY_USB_DAQ),
+            ("Device", 0x2990): Prop("Dev.AI.VoltageRngs", "DoubleArray",
+                                     lambda r: [-spec.range_volts, spec.range_volts]),
+            ("Device", 0x298C): Prop("Dev.AI.MaxSingleChanRate", "Double",
+                                     lambda r: spec.max_aggregate_rate),
+            ("Device", 0x298D): Prop("Dev.AI.MaxMultiChanRate", "Double",
+                                     lambda r: spec.max_aggregate_rate),
+            ("Device", 0x2FD2): Prop("Dev.AI.MeasTypes", "Int32Array", lambda r: [MEAS_VOLTAGE]),
+            ("Device", 0x298F): Prop("Dev.AI.SimultaneousSamplingSupported", "Bool",
+                                     lambda r: False),
+            ("Device", 0x231E): Prop("Dev.AI.PhysicalChans", "String", lambda r: ai),
+            ("Device", 0x231F): Prop("Dev.AO.PhysicalChans", "String",
+                                     lambda r: f"{name}/ao0, {name}/ao1"),
+            ("Device", 0x2324): Prop("Dev.CI.PhysicalChans", "String", lambda r: f"{name}/ctr0"),
+            ("Device", 0x2325): Prop("Dev.CO.PhysicalChans", "String", lambda r: ""),
+            ("Device", 0x2320): Prop("Dev.DI.Lines", "String", lambda r: ", ".join(lines)),
+            ("Device", 0x2322): Prop("Dev.DO.Lines", "String", lambda r: ", ".join(lines)),
+            ("Device", 0x2321): Prop("Dev.DI.Ports", "String",
+                                     lambda r: f"{name}/port0, {name}/port1, {name}/port2"),
+            ("Device", 0x2323): Prop("Dev.DO.Ports", "String",
+                                     lambda r: f"{name}/port0, {name}/port1, {name}/port2"),
+            ("Device", 0x2A40): Prop("Dev.Terminals", "String", lambda r: ", ".join(terminals)),
+            # task
+            ("Task", 0x1276): Prop("Task.Name", "String", lambda r: task(r).name),
+            ("Task", 0x1273): Prop("Task.Channels", "String",
+                                   lambda r: ", ".join(c.name for c in task(r).channels)),
+            ("Task", 0x230E): Prop("Task.Devices", "String",
+                                   lambda r: name if task(r).channels else ""),
+            ("Task", 0x2181): Prop("Task.NumChans", "UInt32", lambda r: len(task(r).channels)),
+            ("Task", 0x29BA): Prop("Task.NumDevices", "UInt32",
+                                   lambda r: 1 if task(r).channels else 0),
+            ("Task", 0x1274): Prop("Task.Complete", "Bool",
+                                   lambda r: dev.is_done(task(r).name)),
+            # channels
+            ("Chan", 0x1097): Prop("AI.TermCfg", "Int32", chan(lambda c: c.terminal)),
+            ("Chan", 0x0695): Prop("AI.MeasType", "Int32", chan(lambda c: MEAS_VOLTAGE)),
+            ("Chan", 0x187F): Prop("ChanType", "Int32", chan(lambda c: CHANNEL_TYPE_AI)),
+            ("Chan", 0x1094): Prop("AI.Voltage.Units", "Int32", chan(lambda c: VOLTS)),
+            ("Chan", 0x1764): Prop("AI.ResolutionUnits", "Int32", chan(lambda c: RESOLUTION_BITS)),
+            ("Chan", 0x1821): Prop("AI.DataXferMech", "Int32", chan(lambda c: USB_BULK)),
+            ("Chan", 0x17DD): Prop("AI.Max", "Double", chan(lambda c: c.max_val)),
+            ("Chan", 0x17DE): Prop("AI.Min", "Double", chan(lambda c: c.min_val)),
+            ("Chan", 0x1815): Prop("AI.Rng.High", "Double", chan(lambda c: spec.range_volts)),
+            ("Chan", 0x1816): Prop("AI.Rng.Low", "Double", chan(lambda c: -spec.range_volts)),
+            ("Chan", 0x1765): Prop("AI.Resolution", "Double",
+                                   chan(lambda c: float(spec.resolution_bits))),
+            ("Chan", 0x18F5): Prop("PhysicalChanName", "String",
+                                   chan(lambda c: f"{name}/{c.physical}")),
+            ("Chan", 0x1926): Prop("ChanDescr", "String", chan(lambda c: c.description),
+                                   set_chan(lambda c, v: setattr(c, "description", v)), ""),
+            ("Chan", 0x2304): Prop("ChanIsGlobal", "Bool", chan(lambda c: False)),
+            ("Chan", 0x1802): Prop("AI.Lowpass.Enable", "Bool", no_lowpass, no_lowpass),
+            # timing
+            ("Timing", 0x1344): Prop("SampClk.Rate", "Double", lambda r: task(r).rate,
+                                     lambda r, v: retime(r, rate=v), 1000.0),
+            ("Timing", 0x22C8): Prop("SampClk.MaxRate", "Double",
+                                     lambda r: dev.max_rate(task(r).name)),
+            ("Timing", 0x1300): Prop("SampQuant.SampMode", "Int32",
+                                     lambda r: task(r).sample_mode,
+                                     lambda r, v: retime(r, mode=v), FINITE),
+            ("Timing", 0x1310): Prop("SampQuant.SampPerChan", "UInt64",
+                                     lambda r: task(r).samps_per_chan,
+                                     lambda r, v: retime(r, samps=v), 1000),
+            ("Timing", 0x1347): Prop("SampTimingType", "Int32",
+                                     lambda r: SAMPLE_CLOCK_TIMING if task(r).timing_set
+                                     else ON_DEMAND_TIMING, timing_type, ON_DEMAND_TIMING),
+            ("Timing", 0x1852): Prop("SampClk.Src", "String", lambda r: ONBOARD_CLOCK,
+                                     clock_source, ""),
+            ("Timing", 0x1301): Prop("SampClk.ActiveEdge", "Int32", lambda r: RISING,
+                                     rising_only, RISING),
+            # buffer
+            ("Buffer", 0x186C): Prop("Buf.Input.BufSize", "UInt32",
+                                     lambda r: dev.buffer_size(task(r).name),
+                                     lambda r, v: dev.set_buffer_size(task(r).name, v)),
+            ("Buffer", 0x230A): Prop("Buf.Input.OnbrdBufSize", "UInt32", lambda r: ONBOARD_FIFO),
+            # read
+            ("Read", 0x217B): Prop("Read.NumChans", "UInt32", lambda r: len(task(r).channels)),
+            ("Read", 0x1223): Prop("Read.AvailSampPerChan", "UInt32",
+                                   lambda r: dev.available(task(r).name)),
+            ("Read", 0x192A): Prop("Read.TotalSampPerChanAcquired", "UInt64",
+                                   lambda r: dev.total_acquired(task(r).name)),
+            ("Read", 0x1221): Prop("Read.CurrReadPos", "UInt64", lambda r: task(r).read_pos),
+            ("Read", 0x1823): Prop("Read.ChannelsToRead", "String",
+                                   lambda r: ", ".join(c.name for c in task(r).channels)),
+            ("Read", 0x190A): Prop("Read.RelativeTo", "Int32", lambda r: task(r).relative_to,
+                                   set_field("relative_to", lambda v: _choice(
+                                       "Read.RelativeTo", v,
+                                       {"FirstSample": FIRST_SAMPLE,
+                                        "CurrReadPos": CURRENT_READ_POSITION,
+                                        "RefTrig": REFERENCE_TRIGGER,
+                                        "FirstPretrigSamp": FIRST_PRETRIGGER_SAMPLE,
+                                        "MostRecentSamp": MOST_RECENT_SAMPLE})),
+                                   CURRENT_READ_POSITION),
+            ("Read", 0x190B): Prop("Read.Offset", "Int32", lambda r: task(r).offset,
+                                   set_field("offset", int), 0),
+            ("Read", 0x1211): Prop("Read.OverWrite", "Int32", lambda r: task(r).overwrite,
+                                   set_field("overwrite", lambda v: _choice(
+                                       "Read.OverWrite", v,
+                                       {"OverwriteUnreadSamps": OVERWRITE_UNREAD,
+                                        "DoNotOverwriteUnreadSamps": DO_NOT_OVERWRITE_UNREAD})),
+                                   DO_NOT_OVERWRITE_UNREAD),
+            ("Read", 0x1215): Prop("Read.ReadAllAvailSamp", "Bool",
+                                   lambda r: task(r).read_all_avail,
+                                   set_field("read_all_avail", bool), False),
+            ("Read", 0x1826): Prop("Read.AutoStart", "Bool", lambda r: task(r).auto_start,
+                                   set_field("auto_start", bool), True),
+        }
+        return table
+
+    def _attribute(self, rpc: str, request: Any, context: Context) -> Any:
+        """Get/Set/Reset<Group>Attribute<Type>: served from :attr:`properties`."""
+        m = _ATTRIBUTE_RPC.match(rpc)
+        assert m is not None
+        verb, group, kind = m[1], m[2], m[3]
+        response = getattr(pb, f"{rpc}Response")
+
+        def serve() -> Any:
+            if hasattr(request, "device_name"):
+                self.device.check_device(request.device_name)
+            prop = self.properties.get((group, request.attribute_raw))
+            if prop is None or (verb != "Reset" and prop.kind != kind):
+                raise _unsupported(rpc, group, request.attribute_raw)
+            if verb == "Get":
+                value = prop.get(request)
+                out = response()
+                field = "value_raw" if "value_raw" in out.DESCRIPTOR.fields_by_name else "value"
+                if kind.endswith("Array"):
+                    getattr(out, field).extend(value)
+                else:
+                    setattr(out, field, value)
+                return out
+            if prop.set is None:
+                raise DaqmxError(ATTR_NOT_SUPPORTED, f"DAQmx{rpc}, property {prop.name} "
+                                 f"({request.attribute_raw:#x}) is read-only.")
+            if verb == "Set":
+                has_raw = "value_raw" in request.DESCRIPTOR.fields_by_name
+                raw = has_raw and request.WhichOneof("value_enum") == "value_raw"
+                prop.set(request, request.value_raw if raw else request.value)
+            elif prop.reset is not None:
+                prop.set(request, prop.reset)
+            else:
+                raise DaqmxError(ATTR_NOT_SUPPORTED, f"DAQmx{rpc}, property {prop.name}: the "
+                                 "simulated USB-6001 does not support resetting it.")
+            return response()
+
+        return self._run(context, serve)
+
+    @staticmethod
+    def _channels(task: SimTask, names: str) -> list[AIChannel]:
+        """The task's channels named in ``names`` (all if empty); names are case-insensitive."""
+        wanted = [n.strip().lower() for n in names.split(",") if n.strip()]
+        chans = [c for c in task.channels if c.name.lower() in wanted] if wanted else task.channels
+        if not chans or (wanted and len(chans) != len(wanted)):
+            raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Channel Name: {names}")
+        return chans
+
+    @classmethod
+    def _chan_value(cls, task: SimTask, names: str, get: Callable[[AIChannel], R]) -> R:
+        """A channel property for one channel or a list of them (which must agree)."""
+        values = {get(c) for c in cls._channels(task, names)}
+        if len(values) != 1:
+            raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Channels {names} differ in this property")
+        return values.pop()
+
+    # --- system, device ----------------------------------------------------------------------
 
     def GetErrorString(self, request: Any, context: Context) -> Any:
         return pb.GetErrorStringResponse(error_string=ERROR_TEXT.get(request.error_code, ""))
+
+    def ResetDevice(self, request: Any, context: Context) -> Any:
+        def reset() -> Any:
+            self.device.check_device(request.device_name)
+            self.device.reset()
+            return pb.ResetDeviceResponse()
+
+        return self._run(context, reset)
+
+    def SelfTestDevice(self, request: Any, context: Context) -> Any:
+        def test() -> Any:
+            self.device.check_device(request.device_name)
+            return pb.SelfTestDeviceResponse()
+
+        return self._run(context, test)
 
     # --- task lifecycle ----------------------------------------------------------------------
 
@@ -174,29 +494,16 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
 
         return self._run(context, control)
 
-    def GetTaskAttributeString(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            values = {
-                0x1276: task.name,
-                0x1273: ", ".join(c.name for c in task.channels),
-                0x230E: self.device.spec.name if task.channels else "",
-            }
-            if request.attribute_raw not in values:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetTaskAttributeStringResponse(value=values[request.attribute_raw])
+    def IsTaskDone(self, request: Any, context: Context) -> Any:
+        return self._run(context, lambda: pb.IsTaskDoneResponse(
+            is_task_done=self.device.is_done(request.task.name)))
 
-        return self._run(context, get)
+    def WaitUntilTaskDone(self, request: Any, context: Context) -> Any:
+        def wait() -> Any:
+            self.device.wait_until_done(request.task.name, request.time_to_wait)
+            return pb.WaitUntilTaskDoneResponse()
 
-    def GetTaskAttributeUInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            values = {0x2181: len(task.channels), 0x29BA: 1 if task.channels else 0}
-            if request.attribute_raw not in values:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetTaskAttributeUInt32Response(value=values[request.attribute_raw])
-
-        return self._run(context, get)
+        return self._run(context, wait)
 
     # --- channels and timing -----------------------------------------------------------------
 
@@ -212,140 +519,18 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
 
         return self._run(context, create)
 
-    @staticmethod
-    def _chan_value(task: SimTask, names: str, get: Callable[[AIChannel], R]) -> R:
-        """A channel property for one channel or a list of them (which must agree)."""
-        wanted = [n.strip() for n in names.split(",") if n.strip()]
-        chans = [c for c in task.channels if c.name in wanted] if wanted else task.channels
-        if not chans or (wanted and len(chans) != len(wanted)):
-            raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Channel Name: {names}")
-        values = {get(c) for c in chans}
-        if len(values) != 1:
-            raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Channels {names} differ in this property")
-        return values.pop()
-
-    def GetChanAttributeInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            getters: dict[int, Callable[[AIChannel], int]] = {
-                0x1097: lambda c: c.terminal,
-                0x0695: lambda c: MEAS_VOLTAGE,
-                0x187F: lambda c: CHANNEL_TYPE_AI,
-            }
-            if request.attribute_raw not in getters:
-                raise _unsupported(request.attribute_raw)
-            value = self._chan_value(self._task(request.task), request.channel,
-                                     getters[request.attribute_raw])
-            return pb.GetChanAttributeInt32Response(value_raw=value)
-
-        return self._run(context, get)
-
-    def GetChanAttributeDouble(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            spec = self.device.spec
-            getters: dict[int, Callable[[AIChannel], float]] = {
-                0x17DD: lambda c: c.max_val,
-                0x17DE: lambda c: c.min_val,
-                0x1815: lambda c: spec.range_volts,
-                0x1816: lambda c: -spec.range_volts,
-                0x1765: lambda c: float(spec.resolution_bits),
-            }
-            if request.attribute_raw not in getters:
-                raise _unsupported(request.attribute_raw)
-            value = self._chan_value(self._task(request.task), request.channel,
-                                     getters[request.attribute_raw])
-            return pb.GetChanAttributeDoubleResponse(value=value)
-
-        return self._run(context, get)
-
     def CfgSampClkTiming(self, request: Any, context: Context) -> Any:
         def cfg() -> Any:
+            self.properties[("Timing", 0x1852)].set(request, request.source)  # type: ignore[misc]
+            if request.active_edge_raw not in (RISING, 0):
+                _choice("SampClk.ActiveEdge", request.active_edge_raw, {"Rising": RISING})
             self.device.cfg_timing(request.task.name, request.rate, request.sample_mode_raw,
                                    request.samps_per_chan)
             return pb.CfgSampClkTimingResponse()
 
         return self._run(context, cfg)
 
-    def GetTimingAttributeDouble(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw == 0x1344:
-                value = task.rate
-            elif request.attribute_raw == 0x22C8:
-                value = self.device.max_rate(task.name)
-            else:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetTimingAttributeDoubleResponse(value=value)
-
-        return self._run(context, get)
-
-    def GetTimingAttributeInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw != 0x1300:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetTimingAttributeInt32Response(value_raw=task.sample_mode)
-
-        return self._run(context, get)
-
-    def GetTimingAttributeUInt64(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw != 0x1310:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetTimingAttributeUInt64Response(value=task.samps_per_chan)
-
-        return self._run(context, get)
-
-    def GetBufferAttributeUInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw == 0x186C:
-                value = task.buffer_size
-            elif request.attribute_raw == 0x230A:
-                value = ONBOARD_FIFO
-            else:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetBufferAttributeUInt32Response(value=value)
-
-        return self._run(context, get)
-
     # --- reading -----------------------------------------------------------------------------
-
-    def GetReadAttributeUInt32(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw == 0x217B:
-                value = len(task.channels)
-            elif request.attribute_raw == 0x1223:
-                value = self.device.available(task.name)
-            else:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetReadAttributeUInt32Response(value=value)
-
-        return self._run(context, get)
-
-    def GetReadAttributeUInt64(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw == 0x192A:
-                value = self.device.total_acquired(task.name)
-            elif request.attribute_raw == 0x1221:
-                value = task.read_pos
-            else:
-                raise _unsupported(request.attribute_raw)
-            return pb.GetReadAttributeUInt64Response(value=value)
-
-        return self._run(context, get)
-
-    def GetReadAttributeString(self, request: Any, context: Context) -> Any:
-        def get() -> Any:
-            task = self._task(request.task)
-            if request.attribute_raw != 0x1823:  # Read.ChannelsToRead
-                raise _unsupported(request.attribute_raw)
-            return pb.GetReadAttributeStringResponse(
-                value=", ".join(c.name for c in task.channels))
-
-        return self._run(context, get)
 
     def ReadAnalogF64(self, request: Any, context: Context) -> Any:
         def read() -> Any:
@@ -370,3 +555,118 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
                 status=status, read_array=flat.tolist(), samps_per_chan_read=got)
 
         return self._run(context, read)
+
+    def ReadAnalogScalarF64(self, request: Any, context: Context) -> Any:
+        def read() -> Any:
+            task = self._task(request.task)
+            if len(task.channels) != 1:
+                raise DaqmxError(INVALID_ATTRIBUTE_VALUE, "A scalar read needs a task with "
+                                 f"one channel; this one has {len(task.channels)}.")
+            data, _ = self.device.read(task.name, 1, request.timeout)
+            return pb.ReadAnalogScalarF64Response(value=float(data[0, 0]))
+
+        return self._run(context, read)
+
+    # --- events ------------------------------------------------------------------------------
+
+    def RegisterEveryNSamplesEvent(self, request: Any, context: Context) -> Iterator[Any]:
+        """Server stream: one response each time another N samples are in the buffer.
+
+        The stream watches the clock and never drives it: on a virtual clock an event fires
+        when a read, a sleep or ``advance`` of someone else has moved time past it.
+        """
+        kind = request.every_n_samples_event_type_raw
+        name = request.task.name
+        n = request.n_samples
+
+        def register() -> int:
+            self.device.task(name)
+            if kind != ACQUIRED_INTO_BUFFER:
+                raise DaqmxError(EVERY_N_SAMPS_TRANSFERRED_EVENT_NOT_SUPPORTED,
+                                 f"Task Name: {name}\nEvent type: {kind}")
+            if n < 1:
+                raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Every N samples: N = {n}")
+            with self._event_lock:
+                if name in self._events:
+                    raise DaqmxError(INVALID_ATTRIBUTE_VALUE, "An every N samples acquired into "
+                                     f"buffer event is already registered for task {name}.")
+                self._registrations += 1
+                self._events[name] = self._registrations
+                return self._registrations
+
+        token = self._run(context, register)
+        context.send_initial_metadata(())
+        return self._every_n_stream(context, name, n, token)
+
+    def _every_n_stream(self, context: Context, name: str, n: int, token: int) -> Iterator[Any]:
+        sent, t0 = 0, None
+        try:
+            while context.is_active():
+                with self._event_lock:
+                    if self._events.get(name) != token:
+                        return
+                try:
+                    task = self.device.task(name)
+                except DaqmxError:
+                    return
+                if not task.running or not task.timing_set:
+                    sent, t0 = 0, None
+                elif t0 != task.t0:
+                    sent, t0 = 0, task.t0
+                elif self.device.total_acquired(name) >= (sent + 1) * n:
+                    sent += 1
+                    yield pb.RegisterEveryNSamplesEventResponse(
+                        every_n_samples_event_type_raw=ACQUIRED_INTO_BUFFER, n_samples=n)
+                    continue
+                time.sleep(EVENT_POLL)
+        finally:
+            with self._event_lock:
+                if self._events.get(name) == token:
+                    del self._events[name]
+
+    def UnregisterEveryNSamplesEvent(self, request: Any, context: Context) -> Any:
+        with self._event_lock:
+            self._events.pop(request.task.name, None)
+        return pb.UnregisterEveryNSamplesEventResponse()
+
+
+def _function_not_supported(rpc: str) -> Callable[..., Any]:
+    def handler(self: Usb6001Servicer, request: Any, context: Context) -> Any:
+        self._run(context, lambda: _raise(_no_function(rpc)))
+
+    handler.__name__ = handler.__qualname__ = rpc
+    handler.__doc__ = f"DAQmx{rpc}: not simulated; answers DAQmx -209876 naming it."
+    return handler
+
+
+def _attribute_handler(rpc: str) -> Callable[..., Any]:
+    def handler(self: Usb6001Servicer, request: Any, context: Context) -> Any:
+        return self._attribute(rpc, request, context)
+
+    handler.__name__ = handler.__qualname__ = rpc
+    handler.__doc__ = f"DAQmx{rpc}: served from the property table."
+    return handler
+
+
+def _raise(fault: DaqmxError) -> NoReturn:
+    raise fault
+
+
+def _complete_service() -> list[str]:
+    """Give every RPC of the NiDAQmx service the servicer does not define a handler: the
+    property table for attribute RPCs, a named DAQmx error for the rest. Returns the names."""
+    base = pb_grpc.NiDAQmxServicer
+    filled = []
+    for method in pb.DESCRIPTOR.services_by_name["NiDAQmx"].methods:
+        if getattr(Usb6001Servicer, method.name) is not getattr(base, method.name):
+            continue
+        if _ATTRIBUTE_RPC.match(method.name):
+            setattr(Usb6001Servicer, method.name, _attribute_handler(method.name))
+        else:
+            setattr(Usb6001Servicer, method.name, _function_not_supported(method.name))
+            filled.append(method.name)
+    return filled
+
+
+#: RPCs of the service the simulated USB-6001 answers with DAQmx -209876 (not simulated).
+NOT_SIMULATED: tuple[str, ...] = tuple(_complete_service())
