@@ -39,7 +39,13 @@ def encode(name: str, **values: object) -> str:
     return command.request.encode(**values)
 
 
+#: Every ``#ERR`` reply starts so (ERROR's regex is anchored): other lines skip the regex.
+_ERROR_PREFIX = f"{ERROR.key}["
+
+
 def _raise_error(line: str, expected: str) -> None:
+    if not line.startswith(_ERROR_PREFIX):
+        return
     err = ERROR.decode(line)
     if err is None:
         return
@@ -96,17 +102,25 @@ def decode_request(line: str) -> tuple[Command, Values]:
     if parts is None:
         raise RequestError(10, "unknown command")
     key = parts[0]
-    known = False
-    for command in COMMANDS.values():
-        if command.request.key != key:
-            continue
-        known = True
+    candidates = _BY_KEY.get(key)
+    if candidates is None:
+        raise RequestError(10, f"unknown command {key}")
+    for command in candidates:
         values = command.request.decode(line)
         if values is not None:
             return command, values
-    if known:
-        raise RequestError(11, f"bad argument for {key}")
-    raise RequestError(10, f"unknown command {key}")
+    raise RequestError(11, f"bad argument for {key}")
+
+
+def _by_key() -> dict[str, tuple[Command, ...]]:
+    table: dict[str, list[Command]] = {}
+    for command in COMMANDS.values():
+        table.setdefault(command.request.key, []).append(command)
+    return {key: tuple(commands) for key, commands in table.items()}
+
+
+#: The table's commands by request key, in table order (``:GAP`` sets or reads the gap).
+_BY_KEY = _by_key()
 
 
 #: Characters an ``#ERR`` text may not carry, and their stand-ins.

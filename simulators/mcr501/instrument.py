@@ -217,14 +217,18 @@ class MCR501Simulator:
         batch = samples[:MAX_RECORDS]
         del samples[:MAX_RECORDS]
         lines = [command.reply.encode(count=len(batch), remaining=len(samples))]
-        for s in batch:
-            lines.append(
-                RECORD.encode(
-                    t_s=s.t,
-                    angle_deg=math.degrees(s.angle),
-                    torque_mnm=self.measured_torque(s.torque, self._stream_rng) * 1e3,
-                    force_n=self.measured_force(s.normal_force, self._stream_rng),
-                    gap_mm=s.gap * 1e3,
-                )
-            )
+        if not batch:
+            return lines
+        # The noise of each point is drawn torque first, then force, as measured_torque and
+        # measured_force would one point at a time: one draw of 2n normals is the same stream.
+        cfg = self.config
+        z = self._stream_rng.standard_normal(2 * len(batch))
+        torque = np.array([s.torque for s in batch]) + cfg.torque_noise * z[0::2]
+        force = np.array([s.normal_force for s in batch]) + cfg.normal_force_noise * z[1::2]
+        # np.rint rounds half to even, as round() does in _quantize.
+        torque_mnm = (np.rint(torque / cfg.torque_resolution) * cfg.torque_resolution) * 1e3
+        force_n = np.rint(force / cfg.normal_force_resolution) * cfg.normal_force_resolution
+        row = RECORD.encode_row
+        for s, m, f in zip(batch, torque_mnm.tolist(), force_n.tolist(), strict=True):
+            lines.append(row(s.t, math.degrees(s.angle), m, f, s.gap * 1e3))
         return lines

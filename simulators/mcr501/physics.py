@@ -72,6 +72,17 @@ class Forces:
     torque: float
 
 
+def _sorted_unique(values: FloatArray) -> FloatArray:
+    """``np.unique`` of a float array without NaN: sort, keep the first of each run."""
+    if values.size < 2:
+        return values
+    values = np.sort(values)
+    keep = np.empty(values.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(values[1:], values[:-1], out=keep[1:])
+    return values[keep]
+
+
 class ShearCell:
     """The arm, the lift and the contact, advanced lazily to a requested time."""
 
@@ -140,16 +151,22 @@ class ShearCell:
         """F_h in the moving frame, F_v, and the lab-frame motor torque."""
         s = np.sign(omega)
         frame = np.where(s == 0, 1.0, s)
-        f_h = np.empty_like(f_perp)
-        f_v = np.empty_like(f_perp)
-        for mu, mask in ((self.cfg.mu, s != 0), (0.0, s == 0)):
-            if not mask.any():
-                continue
-            # resolve_forces is scale-free in (psi, h): pass psi/h with h = 1 to allow an
-            # h that varies while the lift moves.
-            fh, fv = resolve_forces(f_perp[mask], -frame[mask] * x[mask] / h[mask], 1.0, mu)
-            f_h[mask] = fh
-            f_v[mask] = fv
+        moving = s != 0
+        n_moving = int(np.count_nonzero(moving))
+        if n_moving in (0, s.size):
+            # One branch for every node (the usual case): the same elementwise operations
+            # without the masking.
+            mu = self.cfg.mu if n_moving else 0.0
+            f_h, f_v = resolve_forces(f_perp, -frame * x / h, 1.0, mu)
+        else:
+            f_h = np.empty_like(f_perp)
+            f_v = np.empty_like(f_perp)
+            for mu, mask in ((self.cfg.mu, moving), (0.0, ~moving)):
+                # resolve_forces is scale-free in (psi, h): pass psi/h with h = 1 to allow an
+                # h that varies while the lift moves.
+                fh, fv = resolve_forces(f_perp[mask], -frame[mask] * x[mask] / h[mask], 1.0, mu)
+                f_h[mask] = fh
+                f_v[mask] = fv
         torque = frame * f_h * self.cfg.arm + s * self.cfg.torque_offset
         return f_h, f_v, torque
 
@@ -223,7 +240,7 @@ class ShearCell:
                 parts.append(np.array([b]))
             elif exact and not full:
                 parts.append(np.array([t]))
-            nodes = np.unique(np.concatenate(parts))
+            nodes = _sorted_unique(np.concatenate(parts))
             nodes = nodes[nodes > self.t_int]
             if nodes.size:
                 self._integrate(nodes)
@@ -281,14 +298,17 @@ class ShearCell:
             return
         t_start, interval, k_next = self._stream
         k = np.rint((t - t_start) / interval)
-        hit = np.flatnonzero(
-            (k >= k_next)
-            & np.isclose(t, t_start + k * interval, rtol=0, atol=1e-9 * max(1.0, interval))
-        )
-        for i in hit:
-            self.samples.append(Sample(float(t[i]) - t_start, float(phi[i]), float(torque[i]),
-                                       float(f_v[i]), float(gap[i])))  # fmt: skip
+        # np.isclose(t, t_start + k interval, rtol=0, atol) without its generality: finite
+        # times, |a - b| <= atol.
+        atol = 1e-9 * max(1.0, interval)
+        hit = np.flatnonzero((k >= k_next) & (np.abs(t - (t_start + k * interval)) <= atol))
         if hit.size:
+            self.samples.extend(
+                Sample(ti - t_start, p, m, f, g)
+                for ti, p, m, f, g in zip(t[hit].tolist(), phi[hit].tolist(),
+                                          torque[hit].tolist(), f_v[hit].tolist(),
+                                          gap[hit].tolist(), strict=True)
+            )
             self._stream = (t_start, interval, int(k[hit[-1]]) + 1)
         excess = len(self.samples) - self.cfg.stream_buffer
         if excess > 0:
