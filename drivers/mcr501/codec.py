@@ -84,6 +84,24 @@ def decode_record(line: str) -> Values:
     return values
 
 
+#: A ``:MEAS`` record's values in table order: t (s), angle (deg), torque (mN m), force (N),
+#: gap (mm).
+RecordRow = tuple[float, float, float, float, float]
+if any(f.kind != "number" for f in RECORD.shape):  # decode_record_row converts with float
+    raise AssertionError("every :MEAS field must be a number")
+
+
+def decode_record_row(line: str) -> RecordRow:
+    """:func:`decode_record` as a tuple in table order (the driver's per-point fast path);
+    the same validation and errors."""
+    _raise_error(line, RECORD.key)
+    m = RECORD.regex.match(line)
+    if m is None:
+        raise FramingError(f"MCR 501: malformed stream record {line!r}")
+    t_s, angle_deg, torque_mnm, force_n, gap_mm = map(float, m.groups())
+    return t_s, angle_deg, torque_mnm, force_n, gap_mm
+
+
 class RequestError(Exception):
     """A request the instrument rejects; carries the ``#ERR`` code (simulator side)."""
 

@@ -130,7 +130,9 @@ class Message:
         return f"{self.key}[{body}]"
 
     @cached_property
-    def _positional(self) -> str:
+    def row_template(self) -> str:
+        """``KEY[{0:fmt};{1:fmt};...]``: the line for field values in table order with
+        ``str.format`` (the stream records' bulk path; :meth:`encode_row` checks the arity)."""
         body = ";".join(f"{{{i}:{f.fmt}}}" for i, f in enumerate(self._fields))
         return f"{self.key}[{body}]"
 
@@ -154,7 +156,7 @@ class Message:
         """The line for the field values in table order (the fast path for stream records)."""
         if len(values) != len(self._fields) or isinstance(self.shape, str):
             raise TypeError(f"{self.key} takes {len(self._fields)} values, got {len(values)}")
-        return self._positional.format(*values)
+        return self.row_template.format(*values)
 
     def match(self, line: str) -> dict[str, str] | None:
         """The raw field strings of ``line`` if it has this shape, else None."""

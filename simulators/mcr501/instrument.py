@@ -223,12 +223,14 @@ class MCR501Simulator:
         # measured_force would one point at a time: one draw of 2n normals is the same stream.
         cfg = self.config
         z = self._stream_rng.standard_normal(2 * len(batch))
-        torque = np.array([s.torque for s in batch]) + cfg.torque_noise * z[0::2]
-        force = np.array([s.normal_force for s in batch]) + cfg.normal_force_noise * z[1::2]
-        # np.rint rounds half to even, as round() does in _quantize.
+        t, angle, torque, force, gap = (np.array(column) for column in zip(
+            *((s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch), strict=True))
+        torque += cfg.torque_noise * z[0::2]
+        force += cfg.normal_force_noise * z[1::2]
+        # np.rint rounds half to even, as round() does in _quantize; np.degrees is
+        # math.degrees (x * (180 / pi)) elementwise.
         torque_mnm = (np.rint(torque / cfg.torque_resolution) * cfg.torque_resolution) * 1e3
         force_n = np.rint(force / cfg.normal_force_resolution) * cfg.normal_force_resolution
-        row = RECORD.encode_row
-        for s, m, f in zip(batch, torque_mnm.tolist(), force_n.tolist(), strict=True):
-            lines.append(row(s.t, math.degrees(s.angle), m, f, s.gap * 1e3))
+        lines.extend(map(RECORD.row_template.format, t.tolist(), np.degrees(angle).tolist(),
+                         torque_mnm.tolist(), force_n.tolist(), (gap * 1e3).tolist()))
         return lines

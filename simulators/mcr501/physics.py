@@ -100,6 +100,9 @@ class ShearCell:
         # Overlap, |F_v| and |torque| at the last node: a limit trips when entered or deepened,
         # so motion that backs out of a violation stays possible.
         self._prev = (-math.inf, 0.0, 0.0)
+        # advance(t) has integrated every node up to this time, for the current grid (motion
+        # pieces and stream); reset by whatever changes the grid.
+        self._covered = -math.inf
 
     # -- commands (each is a breakpoint of the motion) --------------------------------------
 
@@ -107,16 +110,19 @@ class ShearCell:
         """New set speed (rad/s, + clockwise) from ``t``."""
         self.commit(t)
         self.spin = self.spin.command(t, omega)
+        self._covered = -math.inf
 
     def set_gap(self, t: float, gap: float) -> None:
         """New lift target (m) from ``t``."""
         self.commit(t)
         self.lift = self.lift.command(t, gap)
+        self._covered = -math.inf
 
     def start_stream(self, t: float, interval: float) -> None:
         """Sample at ``t + k interval``, k = 1, 2, ...; earlier samples are discarded."""
         self.advance(t)
         self._stream = (t, interval, 1)
+        self._covered = -math.inf
         self.samples.clear()
         self.overflowed = False
 
@@ -124,6 +130,7 @@ class ShearCell:
         """Stop sampling at ``t``; unread samples and the overflow flag are cleared."""
         self.advance(t)
         self._stream = None
+        self._covered = -math.inf
         self.samples.clear()
         self.overflowed = False
 
@@ -200,6 +207,7 @@ class ShearCell:
         """Integrate exactly to ``t`` and start a new piece there."""
         self.advance(t, exact=True)
         self._anchor = t
+        self._covered = -math.inf
 
     def _next_breakpoint(self) -> float:
         ends = [b for b in (self.spin.ramp_end, self.lift.end) if b > self._anchor]
@@ -224,6 +232,8 @@ class ShearCell:
 
     def advance(self, t: float, exact: bool = False) -> None:
         """Integrate every grid node up to ``t`` (and ``t`` itself if ``exact``)."""
+        if not exact and t <= self._covered:
+            return  # every node up to t is integrated; the grid has not changed since
         while self.t_int < t:
             a = self._anchor
             b = self._next_breakpoint()
@@ -250,6 +260,8 @@ class ShearCell:
                 self._anchor = b
             if not full and not reach_b:
                 break
+        if not exact:
+            self._covered = t
 
     def _integrate(self, nodes: FloatArray) -> None:
         phi, omega = self.spin.at(nodes)
@@ -287,6 +299,7 @@ class ShearCell:
             self.spin = self.spin.halt(t_trip)
             self.lift = self.lift.halt(t_trip)
             self._anchor = t_trip
+            self._covered = -math.inf
         self.t_int = float(nodes[n - 1])
         self._prev = (float(delta[n - 1]), float(abs_fv[n - 1]), float(abs_m[n - 1]))
         self._record(nodes[:n], phi[:n], torque[:n], f_v[:n], gap[:n])
@@ -303,12 +316,8 @@ class ShearCell:
         atol = 1e-9 * max(1.0, interval)
         hit = np.flatnonzero((k >= k_next) & (np.abs(t - (t_start + k * interval)) <= atol))
         if hit.size:
-            self.samples.extend(
-                Sample(ti - t_start, p, m, f, g)
-                for ti, p, m, f, g in zip(t[hit].tolist(), phi[hit].tolist(),
-                                          torque[hit].tolist(), f_v[hit].tolist(),
-                                          gap[hit].tolist(), strict=True)
-            )
+            self.samples.extend(map(Sample, (t[hit] - t_start).tolist(), phi[hit].tolist(),
+                                    torque[hit].tolist(), f_v[hit].tolist(), gap[hit].tolist()))
             self._stream = (t_start, interval, int(k[hit[-1]]) + 1)
         excess = len(self.samples) - self.cfg.stream_buffer
         if excess > 0:
