@@ -153,17 +153,23 @@ def _irregular(r: FloatArray, x: FloatArray, x_prev: float, h_prev: float) -> Fl
     growing factors stay far from overflow. Exact to rounding, vectorised per block.
     """
     dx = _diff_from(x, x_prev)
-    u = _step_weight(r) * dx
-    out = np.empty(x.size)
+    # Every step positive (the usual case): the weight without _step_weight's guards.
+    u = (-np.expm1(-r) / r if bool((r > 0).all()) else _step_weight(r)) * dx
+    n = x.size
+    out = np.empty(n)
     cum = np.cumsum(r)
     start = 0
-    while start < x.size:
-        end = int(np.searchsorted(cum, cum[start] + _MAX_SPAN, side="right"))
+    while start < n:
+        limit = cum[start] + _MAX_SPAN
+        # searchsorted(side="right") on the non-decreasing cum: all of it when the last fits.
+        end = n if cum[-1] <= limit else int(np.searchsorted(cum, limit, side="right"))
         end = max(end, start + 1)
         lo = cum[start:end] - cum[start]
         first = math.exp(-r[start]) * h_prev + u[start]
-        growth = np.exp(lo[1:])
-        acc = first + np.concatenate(([0.0], np.cumsum(u[start + 1 : end] * growth)))
+        acc = np.empty(end - start)
+        acc[0] = 0.0
+        np.cumsum(u[start + 1 : end] * np.exp(lo[1:]), out=acc[1:])
+        acc += first
         out[start:end] = acc * np.exp(-lo)
         h_prev = float(out[end - 1])
         start = end

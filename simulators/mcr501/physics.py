@@ -272,16 +272,24 @@ class ShearCell:
         f_perp = self.contact.block(nodes, delta)
         _, f_v, torque = self._resolve(f_perp, x, h, omega)
         abs_fv, abs_m = np.abs(f_v), np.abs(torque)
-        p_delta, p_fv, p_m = (
-            np.concatenate(([p], v[:-1]))
-            for p, v in zip(self._prev, (delta, abs_fv, abs_m), strict=True)
-        )
-        over = ((delta > self.cfg.overlap_limit) & (delta > p_delta)) | (
-            (abs_fv > self.cfg.normal_force_range) & (abs_fv > p_fv)
-        )
-        over_t = (abs_m > self.cfg.torque_range) & (abs_m > p_m)
-        tripped = np.flatnonzero(over | over_t)
+        cfg = self.cfg
         n = nodes.size
+        # A limit trips only where a value is beyond it: a block within every limit (the
+        # usual case) needs no comparison with the previous node. (NaN takes the full check.)
+        within = (float(delta.max()) <= cfg.overlap_limit
+                  and float(abs_fv.max()) <= cfg.normal_force_range
+                  and float(abs_m.max()) <= cfg.torque_range)
+        tripped = np.empty(0, dtype=np.intp)
+        if not within:
+            p_delta, p_fv, p_m = (
+                np.concatenate(([p], v[:-1]))
+                for p, v in zip(self._prev, (delta, abs_fv, abs_m), strict=True)
+            )
+            over = ((delta > cfg.overlap_limit) & (delta > p_delta)) | (
+                (abs_fv > cfg.normal_force_range) & (abs_fv > p_fv)
+            )
+            over_t = (abs_m > cfg.torque_range) & (abs_m > p_m)
+            tripped = np.flatnonzero(over | over_t)
         if tripped.size:
             i = int(tripped[0])
             n = i + 1
