@@ -87,7 +87,7 @@ def decode_record(line: str) -> Values:
 #: A ``:MEAS`` record's values in table order: t (s), angle (deg), torque (mN m), force (N),
 #: gap (mm).
 RecordRow = tuple[float, float, float, float, float]
-if any(f.kind != "number" for f in RECORD.shape):  # decode_record_row converts with float
+if isinstance(RECORD.shape, str) or any(f.kind != "number" for f in RECORD.shape):
     raise AssertionError("every :MEAS field must be a number")
 
 
