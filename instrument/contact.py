@@ -136,24 +136,40 @@ def _uniform_run(
     return np.asarray(out, dtype=float)
 
 
+def _diff_from(a: FloatArray, before: float) -> FloatArray:
+    """``np.diff(a, prepend=before)`` for a 1-D array, without its general-case overhead
+    (it is called once per simulator read)."""
+    out = np.empty(a.size)
+    if a.size:
+        out[0] = a[0] - before
+        np.subtract(a[1:], a[:-1], out=out[1:])
+    return out
+
+
 def _irregular(r: FloatArray, x: FloatArray, x_prev: float, h_prev: float) -> FloatArray:
     """Recursion for irregular steps: ``h_n = exp(-L_n) (h_s + sum_k u_k exp(L_k))``.
 
     L is the cumulative decay exponent within a block; blocks keep it below _MAX_SPAN so the
     growing factors stay far from overflow. Exact to rounding, vectorised per block.
     """
-    dx = np.diff(x, prepend=x_prev)
-    u = _step_weight(r) * dx
-    out = np.empty(x.size)
+    dx = _diff_from(x, x_prev)
+    # Every step positive (the usual case): the weight without _step_weight's guards.
+    u = (-np.expm1(-r) / r if bool((r > 0).all()) else _step_weight(r)) * dx
+    n = x.size
+    out = np.empty(n)
     cum = np.cumsum(r)
     start = 0
-    while start < x.size:
-        end = int(np.searchsorted(cum, cum[start] + _MAX_SPAN, side="right"))
+    while start < n:
+        limit = cum[start] + _MAX_SPAN
+        # searchsorted(side="right") on the non-decreasing cum: all of it when the last fits.
+        end = n if cum[-1] <= limit else int(np.searchsorted(cum, limit, side="right"))
         end = max(end, start + 1)
         lo = cum[start:end] - cum[start]
         first = math.exp(-r[start]) * h_prev + u[start]
-        growth = np.exp(lo[1:])
-        acc = first + np.concatenate(([0.0], np.cumsum(u[start + 1 : end] * growth)))
+        acc = np.empty(end - start)
+        acc[0] = 0.0
+        np.cumsum(u[start + 1 : end] * np.exp(lo[1:]), out=acc[1:])
+        acc += first
         out[start:end] = acc * np.exp(-lo)
         h_prev = float(out[end - 1])
         start = end
@@ -164,7 +180,7 @@ def _runs(r: FloatArray) -> NDArray[np.intp]:
     """Start indices of the runs of equal steps in ``r`` (always begins with 0)."""
     if r.size < 2:
         return np.zeros(1, dtype=np.intp)
-    change = np.abs(np.diff(r)) > _UNIFORM_RTOL * np.maximum(np.abs(r[1:]), 1e-300)
+    change = np.abs(r[1:] - r[:-1]) > _UNIFORM_RTOL * np.maximum(np.abs(r[1:]), 1e-300)
     return np.concatenate(([0], 1 + np.flatnonzero(change)))
 
 
@@ -254,7 +270,7 @@ class NormalContact:
             raise ValueError("t and delta must be 1-D arrays of the same length")
         if t.size == 0:
             return np.empty(0), np.empty(0)
-        dt = np.diff(t, prepend=t[0] if self.t_last is None else self.t_last)
+        dt = _diff_from(t, t[0] if self.t_last is None else self.t_last)
         if np.any(dt < 0):
             # Round-off between clocks computed two ways (a few ulps) is not a time reversal.
             if np.any(dt < -_TIME_JITTER * max(1.0, abs(float(t[-1])))):

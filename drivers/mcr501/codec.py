@@ -39,7 +39,13 @@ def encode(name: str, **values: object) -> str:
     return command.request.encode(**values)
 
 
+#: Every ``#ERR`` reply starts so (ERROR's regex is anchored): other lines skip the regex.
+_ERROR_PREFIX = f"{ERROR.key}["
+
+
 def _raise_error(line: str, expected: str) -> None:
+    if not line.startswith(_ERROR_PREFIX):
+        return
     err = ERROR.decode(line)
     if err is None:
         return
@@ -78,6 +84,24 @@ def decode_record(line: str) -> Values:
     return values
 
 
+#: A ``:MEAS`` record's values in table order: t (s), angle (deg), torque (mN m), force (N),
+#: gap (mm).
+RecordRow = tuple[float, float, float, float, float]
+if isinstance(RECORD.shape, str) or any(f.kind != "number" for f in RECORD.shape):
+    raise AssertionError("every :MEAS field must be a number")
+
+
+def decode_record_row(line: str) -> RecordRow:
+    """:func:`decode_record` as a tuple in table order (the driver's per-point fast path);
+    the same validation and errors."""
+    _raise_error(line, RECORD.key)
+    m = RECORD.regex.match(line)
+    if m is None:
+        raise FramingError(f"MCR 501: malformed stream record {line!r}")
+    t_s, angle_deg, torque_mnm, force_n, gap_mm = map(float, m.groups())
+    return t_s, angle_deg, torque_mnm, force_n, gap_mm
+
+
 class RequestError(Exception):
     """A request the instrument rejects; carries the ``#ERR`` code (simulator side)."""
 
@@ -96,17 +120,25 @@ def decode_request(line: str) -> tuple[Command, Values]:
     if parts is None:
         raise RequestError(10, "unknown command")
     key = parts[0]
-    known = False
-    for command in COMMANDS.values():
-        if command.request.key != key:
-            continue
-        known = True
+    candidates = _BY_KEY.get(key)
+    if candidates is None:
+        raise RequestError(10, f"unknown command {key}")
+    for command in candidates:
         values = command.request.decode(line)
         if values is not None:
             return command, values
-    if known:
-        raise RequestError(11, f"bad argument for {key}")
-    raise RequestError(10, f"unknown command {key}")
+    raise RequestError(11, f"bad argument for {key}")
+
+
+def _by_key() -> dict[str, tuple[Command, ...]]:
+    table: dict[str, list[Command]] = {}
+    for command in COMMANDS.values():
+        table.setdefault(command.request.key, []).append(command)
+    return {key: tuple(commands) for key, commands in table.items()}
+
+
+#: The table's commands by request key, in table order (``:GAP`` sets or reads the gap).
+_BY_KEY = _by_key()
 
 
 #: Characters an ``#ERR`` text may not carry, and their stand-ins.

@@ -19,6 +19,7 @@ rpm, mN m, N, s); the driver converts to SI.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from types import MappingProxyType
@@ -53,13 +54,20 @@ class Field:
 
     def decode(self, raw: str) -> float | int | str:
         """The value of a raw field that matched :attr:`pattern`."""
-        if self.kind == "number":
-            return float(raw)
-        if self.kind == "integer":
-            return int(raw)
-        if self.kind == "hex":
-            return int(raw, 16)
-        return raw
+        return self.converter(raw)
+
+    @property
+    def converter(self) -> Callable[[str], float | int | str]:
+        """The function from a raw field that matched :attr:`pattern` to its value."""
+        return _CONVERTERS.get(self.kind, str)
+
+
+def _hex(raw: str) -> int:
+    return int(raw, 16)
+
+
+_CONVERTERS: dict[str, Callable[[str], float | int | str]] = {
+    "number": float, "integer": int, "hex": _hex}
 
 
 def number(name: str, fmt: str) -> Field:
@@ -93,7 +101,11 @@ Shape = tuple[Field, ...] | str
 
 @dataclass(frozen=True)
 class Message:
-    """A message shape: key plus fields (or literal argument); compiles to a full-line regex."""
+    """A message shape: key plus fields (or literal argument); compiles to a full-line regex.
+
+    The hot paths (stream records at up to 100 a reply) use what is compiled once per shape:
+    the regex, a ``str.format`` template with every field's format, and the field converters.
+    """
 
     key: str
     shape: Shape
@@ -107,6 +119,27 @@ class Message:
         return frozenset(f.name for f in self.shape) if not isinstance(self.shape, str) \
             else frozenset()
 
+    @cached_property
+    def _fields(self) -> tuple[Field, ...]:
+        return () if isinstance(self.shape, str) else self.shape
+
+    @cached_property
+    def _template(self) -> str:
+        """``KEY[{name:fmt};...]``: ``str.format`` calls ``format(value, fmt)`` per field."""
+        body = ";".join(f"{{{f.name}:{f.fmt}}}" for f in self._fields)
+        return f"{self.key}[{body}]"
+
+    @cached_property
+    def row_template(self) -> str:
+        """``KEY[{0:fmt};{1:fmt};...]``: the line for field values in table order with
+        ``str.format`` (the stream records' bulk path; :meth:`encode_row` checks the arity)."""
+        body = ";".join(f"{{{i}:{f.fmt}}}" for i, f in enumerate(self._fields))
+        return f"{self.key}[{body}]"
+
+    @cached_property
+    def _decoders(self) -> tuple[tuple[str, ...], tuple[Callable[[str], float | int | str], ...]]:
+        return tuple(f.name for f in self._fields), tuple(f.converter for f in self._fields)
+
     def encode(self, **values: object) -> str:
         """The line for ``values`` (no termination)."""
         if isinstance(self.shape, str):
@@ -117,8 +150,13 @@ class Message:
             missing = self._names - values.keys()
             extra = values.keys() - self._names
             raise TypeError(f"{self.key}: missing {sorted(missing)}, unexpected {sorted(extra)}")
-        body = ";".join(f.encode(values[f.name]) for f in self.shape)
-        return f"{self.key}[{body}]"
+        return self._template.format_map(values)
+
+    def encode_row(self, *values: object) -> str:
+        """The line for the field values in table order (the fast path for stream records)."""
+        if len(values) != len(self._fields) or isinstance(self.shape, str):
+            raise TypeError(f"{self.key} takes {len(self._fields)} values, got {len(values)}")
+        return self.row_template.format(*values)
 
     def match(self, line: str) -> dict[str, str] | None:
         """The raw field strings of ``line`` if it has this shape, else None."""
@@ -127,10 +165,12 @@ class Message:
 
     def decode(self, line: str) -> dict[str, float | int | str] | None:
         """The typed field values of ``line`` if it has this shape, else None."""
-        raw = self.match(line)
-        if raw is None or isinstance(self.shape, str):
-            return None if raw is None else {}
-        return {f.name: f.decode(raw[f.name]) for f in self.shape}
+        m = self.regex.match(line)
+        if m is None:
+            return None
+        names, converters = self._decoders
+        # Field patterns have no capturing groups of their own: groups() is in field order.
+        return {n: c(raw) for n, c, raw in zip(names, converters, m.groups(), strict=True)}
 
 
 _cache: dict[tuple[str, Shape], re.Pattern[str]] = {}

@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from drivers.mcr501.codec import Values, decode_record, decode_reply
+from drivers.mcr501.codec import Values, decode_record_row, decode_reply
 from drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
 from drivers.mcr501.transport import LineTransport, VisaTransport
 from instrument.clock import Clock
@@ -314,17 +314,18 @@ class MCR501:
         points: list[StreamPoint] = []
         while True:
             header = self._transact("read_stream")
+            read_line = self._transport.read_line
             for _ in range(int(header["count"])):
-                rec = decode_record(self._transport.read_line())
-                angle = math.radians(float(rec["angle_deg"]))
+                t_s, angle_deg, torque_mnm, force_n, gap_mm = decode_record_row(read_line())
+                angle = math.radians(angle_deg)
                 points.append(
                     StreamPoint(
-                        t=t0 + float(rec["t_s"]),
+                        t=t0 + t_s,
                         angle=angle,
                         theta=angle * arm,
-                        torque=float(rec["torque_mnm"]) * 1e-3,
-                        normal_force=float(rec["force_n"]),
-                        gap=float(rec["gap_mm"]) * 1e-3,
+                        torque=torque_mnm * 1e-3,
+                        normal_force=force_n,
+                        gap=gap_mm * 1e-3,
                     )
                 )
             if int(header["remaining"]) == 0:

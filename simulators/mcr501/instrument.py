@@ -217,14 +217,20 @@ class MCR501Simulator:
         batch = samples[:MAX_RECORDS]
         del samples[:MAX_RECORDS]
         lines = [command.reply.encode(count=len(batch), remaining=len(samples))]
-        for s in batch:
-            lines.append(
-                RECORD.encode(
-                    t_s=s.t,
-                    angle_deg=math.degrees(s.angle),
-                    torque_mnm=self.measured_torque(s.torque, self._stream_rng) * 1e3,
-                    force_n=self.measured_force(s.normal_force, self._stream_rng),
-                    gap_mm=s.gap * 1e3,
-                )
-            )
+        if not batch:
+            return lines
+        # The noise of each point is drawn torque first, then force, as measured_torque and
+        # measured_force would one point at a time: one draw of 2n normals is the same stream.
+        cfg = self.config
+        z = self._stream_rng.standard_normal(2 * len(batch))
+        t, angle, torque, force, gap = (np.array(column) for column in zip(
+            *((s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch), strict=True))
+        torque += cfg.torque_noise * z[0::2]
+        force += cfg.normal_force_noise * z[1::2]
+        # np.rint rounds half to even, as round() does in _quantize; np.degrees is
+        # math.degrees (x * (180 / pi)) elementwise.
+        torque_mnm = (np.rint(torque / cfg.torque_resolution) * cfg.torque_resolution) * 1e3
+        force_n = np.rint(force / cfg.normal_force_resolution) * cfg.normal_force_resolution
+        lines.extend(map(RECORD.row_template.format, t.tolist(), np.degrees(angle).tolist(),
+                         torque_mnm.tolist(), force_n.tolist(), (gap * 1e3).tolist()))
         return lines

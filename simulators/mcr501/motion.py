@@ -42,8 +42,15 @@ class Spin:
         return phi, omega
 
     def state(self, t: float) -> tuple[float, float]:
-        phi, omega = self.at(np.array([t]))
-        return float(phi[0]), float(omega[0])
+        """:meth:`at` for one instant, in plain floats (the same operations in the same order,
+        so the same result to the last bit, without numpy's per-call cost)."""
+        a = math.copysign(self.accel, self.target - self.omega0)
+        ramp = self.ramp_end - self.t0
+        tau = float(t) - self.t0
+        tr = tau if tau <= ramp else ramp  # np.minimum
+        phi = self.phi0 + self.omega0 * tr + 0.5 * a * tr * tr + self.target * (tau - tr)
+        omega = self.omega0 + a * tr if tau < ramp else self.target
+        return phi, omega
 
     def command(self, t: float, target: float) -> Spin:
         """The profile after a new set speed at ``t``."""
@@ -57,8 +64,7 @@ class Spin:
 
     def peak_speed(self, t1: float, t2: float) -> float:
         """Largest |omega| over [t1, t2] (the speed is monotonic between breakpoints)."""
-        _, omega = self.at(np.array([t1, t2]))
-        return float(np.max(np.abs(omega)))
+        return max(abs(self.state(t1)[1]), abs(self.state(t2)[1]))
 
 
 @dataclass(frozen=True)
@@ -81,7 +87,12 @@ class Lift:
         return self.z0 + math.copysign(self.speed, self.target - self.z0) * tau
 
     def gap(self, t: float) -> float:
-        return float(self.at(np.array([t]))[0])
+        """:meth:`at` for one instant, in plain floats (same operations, same result)."""
+        tau = float(t) - self.t0
+        span = self.end - self.t0
+        if not tau <= span:  # np.minimum
+            tau = span
+        return self.z0 + math.copysign(self.speed, self.target - self.z0) * tau
 
     def moving(self, t: float) -> bool:
         return t < self.end

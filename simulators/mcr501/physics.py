@@ -72,6 +72,17 @@ class Forces:
     torque: float
 
 
+def _sorted_unique(values: FloatArray) -> FloatArray:
+    """``np.unique`` of a float array without NaN: sort, keep the first of each run."""
+    if values.size < 2:
+        return values
+    values = np.sort(values)
+    keep = np.empty(values.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(values[1:], values[:-1], out=keep[1:])
+    return values[keep]
+
+
 class ShearCell:
     """The arm, the lift and the contact, advanced lazily to a requested time."""
 
@@ -89,6 +100,9 @@ class ShearCell:
         # Overlap, |F_v| and |torque| at the last node: a limit trips when entered or deepened,
         # so motion that backs out of a violation stays possible.
         self._prev = (-math.inf, 0.0, 0.0)
+        # advance(t) has integrated every node up to this time, for the current grid (motion
+        # pieces and stream); reset by whatever changes the grid.
+        self._covered = -math.inf
 
     # -- commands (each is a breakpoint of the motion) --------------------------------------
 
@@ -96,16 +110,19 @@ class ShearCell:
         """New set speed (rad/s, + clockwise) from ``t``."""
         self.commit(t)
         self.spin = self.spin.command(t, omega)
+        self._covered = -math.inf
 
     def set_gap(self, t: float, gap: float) -> None:
         """New lift target (m) from ``t``."""
         self.commit(t)
         self.lift = self.lift.command(t, gap)
+        self._covered = -math.inf
 
     def start_stream(self, t: float, interval: float) -> None:
         """Sample at ``t + k interval``, k = 1, 2, ...; earlier samples are discarded."""
         self.advance(t)
         self._stream = (t, interval, 1)
+        self._covered = -math.inf
         self.samples.clear()
         self.overflowed = False
 
@@ -113,6 +130,7 @@ class ShearCell:
         """Stop sampling at ``t``; unread samples and the overflow flag are cleared."""
         self.advance(t)
         self._stream = None
+        self._covered = -math.inf
         self.samples.clear()
         self.overflowed = False
 
@@ -140,16 +158,22 @@ class ShearCell:
         """F_h in the moving frame, F_v, and the lab-frame motor torque."""
         s = np.sign(omega)
         frame = np.where(s == 0, 1.0, s)
-        f_h = np.empty_like(f_perp)
-        f_v = np.empty_like(f_perp)
-        for mu, mask in ((self.cfg.mu, s != 0), (0.0, s == 0)):
-            if not mask.any():
-                continue
-            # resolve_forces is scale-free in (psi, h): pass psi/h with h = 1 to allow an
-            # h that varies while the lift moves.
-            fh, fv = resolve_forces(f_perp[mask], -frame[mask] * x[mask] / h[mask], 1.0, mu)
-            f_h[mask] = fh
-            f_v[mask] = fv
+        moving = s != 0
+        n_moving = int(np.count_nonzero(moving))
+        if n_moving in (0, s.size):
+            # One branch for every node (the usual case): the same elementwise operations
+            # without the masking.
+            mu = self.cfg.mu if n_moving else 0.0
+            f_h, f_v = resolve_forces(f_perp, -frame * x / h, 1.0, mu)
+        else:
+            f_h = np.empty_like(f_perp)
+            f_v = np.empty_like(f_perp)
+            for mu, mask in ((self.cfg.mu, moving), (0.0, ~moving)):
+                # resolve_forces is scale-free in (psi, h): pass psi/h with h = 1 to allow an
+                # h that varies while the lift moves.
+                fh, fv = resolve_forces(f_perp[mask], -frame[mask] * x[mask] / h[mask], 1.0, mu)
+                f_h[mask] = fh
+                f_v[mask] = fv
         torque = frame * f_h * self.cfg.arm + s * self.cfg.torque_offset
         return f_h, f_v, torque
 
@@ -183,6 +207,7 @@ class ShearCell:
         """Integrate exactly to ``t`` and start a new piece there."""
         self.advance(t, exact=True)
         self._anchor = t
+        self._covered = -math.inf
 
     def _next_breakpoint(self) -> float:
         ends = [b for b in (self.spin.ramp_end, self.lift.end) if b > self._anchor]
@@ -207,6 +232,8 @@ class ShearCell:
 
     def advance(self, t: float, exact: bool = False) -> None:
         """Integrate every grid node up to ``t`` (and ``t`` itself if ``exact``)."""
+        if not exact and t <= self._covered:
+            return  # every node up to t is integrated; the grid has not changed since
         while self.t_int < t:
             a = self._anchor
             b = self._next_breakpoint()
@@ -223,7 +250,7 @@ class ShearCell:
                 parts.append(np.array([b]))
             elif exact and not full:
                 parts.append(np.array([t]))
-            nodes = np.unique(np.concatenate(parts))
+            nodes = _sorted_unique(np.concatenate(parts))
             nodes = nodes[nodes > self.t_int]
             if nodes.size:
                 self._integrate(nodes)
@@ -233,6 +260,8 @@ class ShearCell:
                 self._anchor = b
             if not full and not reach_b:
                 break
+        if not exact:
+            self._covered = t
 
     def _integrate(self, nodes: FloatArray) -> None:
         phi, omega = self.spin.at(nodes)
@@ -243,16 +272,24 @@ class ShearCell:
         f_perp = self.contact.block(nodes, delta)
         _, f_v, torque = self._resolve(f_perp, x, h, omega)
         abs_fv, abs_m = np.abs(f_v), np.abs(torque)
-        p_delta, p_fv, p_m = (
-            np.concatenate(([p], v[:-1]))
-            for p, v in zip(self._prev, (delta, abs_fv, abs_m), strict=True)
-        )
-        over = ((delta > self.cfg.overlap_limit) & (delta > p_delta)) | (
-            (abs_fv > self.cfg.normal_force_range) & (abs_fv > p_fv)
-        )
-        over_t = (abs_m > self.cfg.torque_range) & (abs_m > p_m)
-        tripped = np.flatnonzero(over | over_t)
+        cfg = self.cfg
         n = nodes.size
+        # A limit trips only where a value is beyond it: a block within every limit (the
+        # usual case) needs no comparison with the previous node. (NaN takes the full check.)
+        within = (float(delta.max()) <= cfg.overlap_limit
+                  and float(abs_fv.max()) <= cfg.normal_force_range
+                  and float(abs_m.max()) <= cfg.torque_range)
+        tripped = np.empty(0, dtype=np.intp)
+        if not within:
+            p_delta, p_fv, p_m = (
+                np.concatenate(([p], v[:-1]))
+                for p, v in zip(self._prev, (delta, abs_fv, abs_m), strict=True)
+            )
+            over = ((delta > cfg.overlap_limit) & (delta > p_delta)) | (
+                (abs_fv > cfg.normal_force_range) & (abs_fv > p_fv)
+            )
+            over_t = (abs_m > cfg.torque_range) & (abs_m > p_m)
+            tripped = np.flatnonzero(over | over_t)
         if tripped.size:
             i = int(tripped[0])
             n = i + 1
@@ -270,6 +307,7 @@ class ShearCell:
             self.spin = self.spin.halt(t_trip)
             self.lift = self.lift.halt(t_trip)
             self._anchor = t_trip
+            self._covered = -math.inf
         self.t_int = float(nodes[n - 1])
         self._prev = (float(delta[n - 1]), float(abs_fv[n - 1]), float(abs_m[n - 1]))
         self._record(nodes[:n], phi[:n], torque[:n], f_v[:n], gap[:n])
@@ -281,14 +319,13 @@ class ShearCell:
             return
         t_start, interval, k_next = self._stream
         k = np.rint((t - t_start) / interval)
-        hit = np.flatnonzero(
-            (k >= k_next)
-            & np.isclose(t, t_start + k * interval, rtol=0, atol=1e-9 * max(1.0, interval))
-        )
-        for i in hit:
-            self.samples.append(Sample(float(t[i]) - t_start, float(phi[i]), float(torque[i]),
-                                       float(f_v[i]), float(gap[i])))  # fmt: skip
+        # np.isclose(t, t_start + k interval, rtol=0, atol) without its generality: finite
+        # times, |a - b| <= atol.
+        atol = 1e-9 * max(1.0, interval)
+        hit = np.flatnonzero((k >= k_next) & (np.abs(t - (t_start + k * interval)) <= atol))
         if hit.size:
+            self.samples.extend(map(Sample, (t[hit] - t_start).tolist(), phi[hit].tolist(),
+                                    torque[hit].tolist(), f_v[hit].tolist(), gap[hit].tolist()))
             self._stream = (t_start, interval, int(k[hit[-1]]) + 1)
         excess = len(self.samples) - self.cfg.stream_buffer
         if excess > 0:

@@ -1,0 +1,199 @@
+"""The MCR 501 fast paths (issue 12, rehearsal speed) compute exactly what the plain ones do.
+
+Each fast path is checked against the straightforward form it replaced, to the last bit; and
+the paper shear rehearsal against figures recorded before the fast paths existed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.mcr501.codec import RequestError, decode_record, decode_record_row, decode_request
+from drivers.mcr501.commands import COMMANDS, ERROR, RECORD, Message
+from instrument.contact import _irregular, _step_weight
+from instrument.errors import DeviceErrorReply, FramingError
+from simulators.mcr501.instrument import MCR501Simulator
+from simulators.mcr501.motion import Lift, Spin
+from simulators.mcr501.physics import Sample, _sorted_unique
+
+REFERENCE = Path(__file__).parent / "data" / "shear_rehearsal_reference.json"
+
+
+def plain_encode(message: Message, values: dict[str, object]) -> str:
+    assert not isinstance(message.shape, str)
+    body = ";".join(format(values[f.name], f.fmt) for f in message.shape)
+    return f"{message.key}[{body}]"
+
+
+def plain_decode(message: Message, line: str) -> dict[str, object] | None:
+    m = message.regex.match(line)
+    if m is None or isinstance(message.shape, str):
+        return None if m is None else {}
+    raw = m.groupdict()
+    return {f.name: f.decode(raw[f.name]) for f in message.shape}
+
+
+def test_records_encode_and_decode_as_the_per_field_formats_do() -> None:
+    rng = np.random.default_rng(7)
+    names = [f.name for f in RECORD.shape]  # type: ignore[union-attr]
+    for row in rng.normal(size=(2000, 5)) * rng.choice([1e-6, 1.0, 1e3, 1e6], size=(2000, 5)):
+        values = dict(zip(names, row.tolist(), strict=True))
+        line = RECORD.encode(**values)
+        assert line == plain_encode(RECORD, values) == RECORD.encode_row(*row.tolist())
+        assert RECORD.decode(line) == plain_decode(RECORD, line) == decode_record(line)
+        assert decode_record_row(line) == tuple(plain_decode(RECORD, line).values())  # type: ignore[union-attr]
+
+
+def test_every_table_message_round_trips_as_before() -> None:
+    samples: dict[str, object] = {"model": "MCR501", "serial": "SN1", "firmware": "03.40",
+                                  "mode": "ROT", "flags": 0x2A, "direction": "CCW",
+                                  "count": 3, "remaining": 0, "code": 13, "text": "x y"}
+    for command in COMMANDS.values():
+        for message in (command.request, command.reply):
+            if isinstance(message.shape, str):
+                line = message.encode()
+                assert line == f"{message.key}[{message.shape}]"
+                assert message.decode(line) == {}
+                continue
+            values = {f.name: samples.get(f.name, 1.2345678) for f in message.shape}
+            line = message.encode(**values)
+            assert line == plain_encode(message, values)
+            assert message.decode(line) == plain_decode(message, line)
+            assert message.decode(line + "x") is None
+    with pytest.raises(TypeError):
+        RECORD.encode(t_s=1.0)
+    with pytest.raises(TypeError):
+        RECORD.encode_row(1.0, 2.0)
+
+
+def test_the_record_row_keeps_the_codec_validation() -> None:
+    with pytest.raises(DeviceErrorReply):
+        decode_record_row(ERROR.encode(code=11, text="bad argument"))
+    for bad in (":MEAS[1;2;3;4]", ":MEAS[1;2;3;4;x]", ":MEAS[1;2;3;4;5", "#DATA[1;0]"):
+        with pytest.raises(FramingError):
+            decode_record_row(bad)
+
+
+def test_requests_are_found_by_key_as_by_scanning_the_table() -> None:
+    line = COMMANDS["set_gap"].request.encode(gap_mm=1.5)
+    assert decode_request(line)[0] is COMMANDS["set_gap"]
+    assert decode_request(":GAP[?]")[0] is COMMANDS["read_gap"]
+    for bad, code in ((":GAP[x]", 11), (":NOPE[?]", 10), ("garbage", 10)):
+        with pytest.raises(RequestError) as info:
+            decode_request(bad)
+        assert info.value.code == code
+
+
+def test_scalar_motion_states_equal_the_array_evaluation() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        spin = Spin(*rng.normal(size=4).tolist(), float(rng.uniform(0.1, 2)))
+        lift = Lift(float(rng.normal()), float(rng.uniform(0, 0.01)),
+                    float(rng.uniform(0, 0.01)), float(rng.uniform(1e-4, 1e-2)))
+        times = spin.t0 + rng.uniform(0, 10, size=20)
+        phi, omega = spin.at(times)
+        gap = lift.at(lift.t0 + (times - spin.t0))
+        for i, t in enumerate(times.tolist()):
+            assert spin.state(t) == (phi[i], omega[i])
+            assert lift.gap(lift.t0 + (t - spin.t0)) == gap[i]
+        assert spin.peak_speed(spin.t0, spin.t0 + 3.0) == float(
+            np.max(np.abs(spin.at(np.array([spin.t0, spin.t0 + 3.0]))[1])))
+
+
+def test_sorted_unique_is_np_unique() -> None:
+    rng = np.random.default_rng(5)
+    for n in (0, 1, 2, 17, 500):
+        values = np.round(rng.uniform(0, 5, size=n), 1)
+        assert np.array_equal(_sorted_unique(values), np.unique(values))
+
+
+def plain_irregular(r: np.ndarray, x: np.ndarray, x_prev: float, h_prev: float) -> np.ndarray:
+    """instrument.contact._irregular as it was before its fast path."""
+    dx = np.diff(x, prepend=x_prev)
+    u = _step_weight(r) * dx
+    out = np.empty(x.size)
+    cum = np.cumsum(r)
+    start = 0
+    while start < x.size:
+        end = int(np.searchsorted(cum, cum[start] + 20.0, side="right"))
+        end = max(end, start + 1)
+        lo = cum[start:end] - cum[start]
+        first = math.exp(-r[start]) * h_prev + u[start]
+        growth = np.exp(lo[1:])
+        acc = first + np.concatenate(([0.0], np.cumsum(u[start + 1 : end] * growth)))
+        out[start:end] = acc * np.exp(-lo)
+        h_prev = float(out[end - 1])
+        start = end
+    return out
+
+
+@pytest.mark.parametrize("scale", [1e-4, 1.0, 30.0])
+def test_the_irregular_recursion_is_unchanged(scale: float) -> None:
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        n = int(rng.integers(1, 400))
+        r = rng.uniform(0, 1, size=n) * scale
+        r[rng.uniform(size=n) < 0.05] = 0.0  # zero steps take the guarded weight
+        x = np.abs(rng.normal(size=n)) * 1e-5
+        args = (r, x, float(rng.uniform(0, 1e-5)), float(rng.normal() * 1e-6))
+        assert np.array_equal(_irregular(*args), plain_irregular(*args))
+        r = np.abs(r) + 1e-9  # every step positive
+        args = (r, *args[1:])
+        assert np.array_equal(_irregular(*args), plain_irregular(*args))
+
+
+def test_stream_noise_drawn_per_batch_equals_per_point_draws() -> None:
+    from instrument.clock import VirtualClock
+
+    sim = MCR501Simulator(VirtualClock())
+    rng = np.random.default_rng(0)
+    batch = [Sample(0.1 * k, *rng.normal(size=2).tolist(), float(rng.normal()), 3e-3)
+             for k in range(1, 60)]
+    sim.cell.samples[:] = batch
+    lines = sim._read_stream(COMMANDS["read_stream"], {}, 0.0)[1:]
+    point_rng = np.random.default_rng(sim.config.seed)
+    expected = [
+        plain_encode(RECORD, {
+            "t_s": s.t, "angle_deg": math.degrees(s.angle),
+            "torque_mnm": sim.measured_torque(s.torque, point_rng) * 1e3,
+            "force_n": sim.measured_force(s.normal_force, point_rng), "gap_mm": s.gap * 1e3})
+        for s in batch
+    ]
+    assert lines == expected
+
+
+@pytest.mark.slow
+def test_the_paper_shear_rehearsal_is_what_it_was_before_the_fast_paths() -> None:
+    from gelrig.factory import build_twin
+    from protocols.events import EventBus, Samples
+    from protocols.rehearsal import describe, rehearse
+    from protocols.rigfile import default_rig, load_rig
+    from protocols.spec import load_protocol, paper_protocol
+
+    expected = json.loads(REFERENCE.read_text())["shear"]
+    twin = build_twin(load_rig(default_rig("shear")))
+    bus = EventBus()
+    blocks: list[dict[str, np.ndarray]] = []
+    bus.subscribe(lambda e: blocks.append(dict(e.data)) if isinstance(e, Samples) else None)
+    try:
+        report = describe(rehearse(twin, load_protocol(paper_protocol("shear")), bus))
+    finally:
+        twin.close()
+    assert report["state"] == "completed"
+    assert report["lab_time_s"] == pytest.approx(expected["lab_time_s"], rel=1e-12, abs=0)
+    assert (report["samples"], report["bytes"]) == (expected["samples"], expected["bytes"])
+    for got, want in zip(report["steps"], expected["steps"], strict=True):
+        assert (got["name"], got["samples"]) == (want["name"], want["samples"])
+        assert got["lab_time_s"] == pytest.approx(want["lab_time_s"], rel=1e-12, abs=0)
+        assert got["travel_m"] == pytest.approx(want["travel_m"], rel=1e-12, abs=0)
+    for column, figures in expected["columns"].items():
+        v = np.concatenate([b[column] for b in blocks])
+        got = {"sum": np.sum(v), "sum_abs": np.sum(np.abs(v)), "first": v[0], "last": v[-1],
+               "min": np.min(v), "max": np.max(v)}
+        for name, want in figures.items():
+            assert float(got[name]) == pytest.approx(want, rel=1e-12, abs=1e-300), (column, name)
