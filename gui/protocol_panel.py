@@ -3,7 +3,6 @@ run / pause / resume / abort, and follow the progress with a lab-time ETA."""
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import threading
@@ -31,7 +30,7 @@ from instrument.units import lab_time
 from protocols.control import RunControl
 from protocols.events import Progress, RunState
 from protocols.plan import PlanSummary, dry_run
-from protocols.rehearsal import RehearsalReport
+from protocols.rehearsal import RehearsalReport, human_bytes
 from protocols.rig import CompressionLimits, ShearLimits
 from protocols.spec import ProtocolSpec
 
@@ -62,7 +61,6 @@ class ProtocolPanel(QGroupBox):
     pause_clicked = Signal()
     resume_clicked = Signal()
     abort_clicked = Signal()
-    rehearsed = Signal(object, object)  # (the spec it ran, RehearsalReport or error text)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__("Protocol", parent)
@@ -121,7 +119,10 @@ class ProtocolPanel(QGroupBox):
         self._rehearsal_timer = QTimer(self)
         self._rehearsal_timer.setSingleShot(True)
         self._rehearsal_timer.timeout.connect(self._start_rehearsal)
-        self.rehearsed.connect(self._on_rehearsed)
+        self._rehearsal_poll = QTimer(self)
+        self._rehearsal_poll.setInterval(150)
+        self._rehearsal_poll.timeout.connect(self._collect_rehearsal)
+        self._outbox: list[tuple[ProtocolSpec, object]] = []
         self.why_not = "open a protocol file"
         self._update()
 
@@ -157,6 +158,8 @@ class ProtocolPanel(QGroupBox):
 
     def set_state(self, state: RunState, reason: str = "") -> None:
         self.state = state
+        if self.active:
+            self.cancel_rehearsal()
         if state != RunState.RUNNING:
             self.pause_requested = False
         if state == RunState.PAUSED:
@@ -225,7 +228,7 @@ class ProtocolPanel(QGroupBox):
         if not self.active and self.why_not and self.state == RunState.IDLE:
             self.status.setText(f"not ready: {self.why_not}")
         elif not self.active and self.state == RunState.IDLE:
-            self.status.setText("ready")
+            self.status.setText(f"ready{self._rehearsal_status()}")
 
     def _why_not(self, spec: ProtocolSpec | None) -> str:
         if self.active:
@@ -244,6 +247,16 @@ class ProtocolPanel(QGroupBox):
         return ""
 
     # ---- the rehearsal on the rig's twin --------------------------------------------------
+    def _rehearsal_status(self) -> str:
+        """The rehearsal's verdict for the status line, where it is seen without scrolling."""
+        if self.rehearsal is not None and self.rehearsal.ok:
+            return (f": rehearsed on the rig's twin, {lab_time(self.rehearsal.total)} lab time, "
+                    f"{human_bytes(self.rehearsal.bytes)} of data")
+        if self.rehearse_fn is not None and self._rehearsing is self.spec and \
+                self.rehearsal is None and not self.rehearsal_error:
+            return " (rehearsing on the rig's twin...)"
+        return ""
+
     def _rehearsal_text(self, spec: ProtocolSpec) -> str:
         """The rehearsal's lines under the static plan; schedules one if none ran for spec."""
         if self.rehearse_fn is None or self.active or (self.plan and self.plan.failed):
@@ -259,17 +272,24 @@ class ProtocolPanel(QGroupBox):
         return head + "rehearsing..."
 
     def cancel_rehearsal(self) -> None:
-        """Abort a rehearsal still running (the protocol changed, or the window closes)."""
+        """Abort a rehearsal still running (the protocol changed, a run starts, the window
+        closes): it would only take time from the run."""
+        self._rehearsal_poll.stop()
+        self._outbox = []
         if self._rehearsal_control is not None:
             self._rehearsal_control.abort("superseded")
             self._rehearsal_control = None
+            if self.rehearsal is None and not self.rehearsal_error:
+                self._rehearsing = None  # unfinished: rehearse again when next asked
 
     def _start_rehearsal(self) -> None:
         spec, rehearse = self._rehearsing, self.rehearse_fn
-        if spec is None or rehearse is None or spec is not self.spec:
+        if spec is None or rehearse is None or spec is not self.spec or self.active:
             return
         self.cancel_rehearsal()
+        self._rehearsing = spec
         control = self._rehearsal_control = RunControl()
+        outbox: list[tuple[ProtocolSpec, object]] = []  # the thread touches no Qt object
 
         def work() -> None:
             try:
@@ -277,12 +297,17 @@ class ProtocolPanel(QGroupBox):
             except Exception as exc:  # the twin could not be built: say so, keep the GUI
                 log.warning("rehearsal failed to run: %s", exc, exc_info=True)
                 result = f"{type(exc).__name__}: {exc}"
-            if control.abort_requested:
-                return
-            with contextlib.suppress(RuntimeError):  # the panel is gone (window closed)
-                self.rehearsed.emit(spec, result)
+            outbox.append((spec, result))
 
+        self._outbox = outbox
         threading.Thread(target=work, name="rehearsal", daemon=True).start()
+        self._rehearsal_poll.start()
+
+    def _collect_rehearsal(self) -> None:
+        """On the GUI thread: take a finished rehearsal's result, if any."""
+        if self._outbox:
+            self._rehearsal_poll.stop()
+            self._on_rehearsed(*self._outbox.pop())
 
     def _on_rehearsed(self, spec: object, result: object) -> None:
         if spec is not self._rehearsing:

@@ -279,6 +279,10 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike) -> FirstTouch:
     upper = f > 0.3 * top
     if np.count_nonzero(upper) < 3 or top <= 0:
         raise ConfigError("approach", top, "the force never rose above its noise")
+    if np.unique(z[upper]).size < 3:  # a line through fewer positions is not determined
+        raise ConfigError("approach", int(np.unique(z[upper]).size),
+                          "the force rose over fewer than 3 plate positions; approach slower "
+                          "or sample faster")
     slope, intercept = np.polyfit(z[upper], np.cbrt(f[upper]) ** 2, 1)
     if slope <= 0:
         raise ConfigError("approach", slope, "the force does not rise with the travel")

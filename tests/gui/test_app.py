@@ -336,6 +336,7 @@ def test_the_dry_run_rehearses_on_the_twin_and_a_failed_rehearsal_disables_run(q
     text = panel.plan_text.toPlainText()
     assert "Rehearsal on the rig's twin" in text and "rehearsal passed" in text
     assert panel.run_button.isEnabled()
+    assert panel.status.text().startswith("ready: rehearsed on the rig's twin, ")
     # the static limit checks pass, the rehearsal does not: no first touch for the hold
     panel.set_table({"protocol": {"name": "hold only", "rig": "compression"},
                      "step": [{"kind": "ramp_hold", "hold": "2 s"}]}, "<test>")

@@ -6,6 +6,7 @@ import pytest
 from instrument import paper
 from instrument.analysis import (
     contact_length,
+    estimate_first_touch,
     fit_hold,
     fit_relaxation,
     modulus_history,
@@ -102,3 +103,10 @@ def test_contact_length():
     f = np.where((x > 2) & (x < 7), 1.0, 0.0)
     assert contact_length(x, f) == pytest.approx(4.8)
     assert contact_length(x, np.zeros_like(x)) == 0.0
+
+
+def test_first_touch_needs_the_force_to_rise_over_several_positions() -> None:
+    z = np.r_[np.linspace(5e-3, 6e-3, 20), np.full(10, 6.3e-3)]  # the stage stood still
+    f = np.r_[np.zeros(20), np.linspace(0.01, 0.05, 10)]
+    with pytest.raises(ConfigError, match="fewer than 3 plate positions"):
+        estimate_first_touch(z, f)
