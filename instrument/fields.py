@@ -303,11 +303,6 @@ class Config:
                 field = where.name(field.removeprefix(own))
             raise ConfigError(field, exc.value, exc.allowed, exc.source or source) from None
 
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], source: str | None = None) -> Self:
-        """The same as :meth:`from_table` at the class's own section."""
-        return cls.from_table(mapping, source)
-
     def to_table(self) -> dict[str, Any]:
         """Values by TOML key (SI numbers), for storing beside the data."""
         return {spec.key: getattr(self, name) for name, spec in self.specs().items()}
@@ -336,17 +331,6 @@ def read_table(
         else:
             out[name] = spec.initial()
     return out
-
-
-def parse_table(
-    table: Mapping[str, Any],
-    fields: Sequence[Field],
-    section: str = "",
-    source: str | None = None,
-    ignore: Sequence[str] = (),
-) -> dict[str, float]:
-    """SI values for a sequence of fields keyed by their TOML key (step parameters)."""
-    return read_table(table, {f.key: f for f in fields}, Where(section, source), ignore)
 
 
 def _depth(value: object, level: int = 0) -> int:

@@ -151,10 +151,6 @@ class StageConfig(Config):
             raise where.error("min_position", self.min_position_m,
                               f"must be < max_position ({self.max_position_m:g} m)")
 
-    def to_mapping(self) -> dict[str, float | str]:
-        """The inverse of ``from_mapping`` (SI numbers), for storing beside the data."""
-        return self.to_table()
-
     # Conversions used by drivers (mm only at the wire).
     def counts_from_m(self, position_m: float) -> int:
         """Encoder counts for a position or distance in metres (rounded)."""

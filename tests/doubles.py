@@ -184,7 +184,7 @@ class FakeStage:
 
 
 class FakeForceSensor:
-    """Samples ``F = C * E(t)... `` of an elastic (or relaxing) sphere under the fake plate.
+    """Samples the Hertz force of an elastic (or relaxing) sphere under the fake plate.
 
     The contact is Hertz with the plate's overlap past ``first_touch`` and the modulus
     ``material`` relaxes from the moment of contact (a coarse stand-in for the hereditary

@@ -197,3 +197,14 @@ def _close(sock: socket.socket) -> None:
     with contextlib.suppress(OSError):
         sock.shutdown(socket.SHUT_RDWR)
     sock.close()
+
+
+def failing(call: Callable[[], object], error: type[Exception] | tuple[type[Exception], ...]
+            ) -> tuple[Exception, float]:
+    """The error ``call()`` raised (it must raise ``error``) and the seconds it took."""
+    import pytest
+
+    t0 = time.monotonic()
+    with pytest.raises(error) as info:
+        call()
+    return info.value, time.monotonic() - t0

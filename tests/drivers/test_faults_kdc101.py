@@ -16,7 +16,7 @@ from instrument.errors import Disconnected, FramingError, InstrumentTimeout
 from instrument.stage import StageConfig
 from simulators.kdc101 import KDC101Simulator
 from simulators.kdc101.serve import TcpServer
-from tests.faultproxy import FaultProxy
+from tests.faultproxy import FaultProxy, failing
 from tests.served import Served, serve
 
 CONFIG = StageConfig(reply_timeout_s=1.0)
@@ -40,13 +40,6 @@ def proxied() -> Iterator[tuple[KDC101Simulator, FaultProxy, KDC101]]:
         server.stop()
 
 
-def timed_failure(call: Callable[[], object], error: type[Exception] | tuple[type[Exception], ...]
-                  ) -> float:
-    t0 = time.monotonic()
-    with pytest.raises(error):
-        call()
-    return time.monotonic() - t0
-
 
 def eventually(check: Callable[[], bool], within: float = 1.0) -> bool:
     """``check()`` became true within ``within`` seconds (polled)."""
@@ -69,7 +62,7 @@ def test_wire_fault_mid_move_stops_first_then_raises_within_the_deadline(
     sim, proxy, stage = proxied
     stage.move_by(2e-3, wait=False)  # ~1 s of motion at 2.3 mm/s
     getattr(proxy, fault)()
-    took = timed_failure(stage.wait_until_stopped, error)
+    _, took = failing(stage.wait_until_stopped, error)
     assert took < BOUND, took
     # The stop went out first (the server may take a moment to read it).
     assert eventually(lambda: sim.received[-1].msg_id == MsgId.MOT_MOVE_STOP)
@@ -84,7 +77,7 @@ def test_a_reply_later_than_the_timeout_is_a_timeout(
     proxy.delay(0.2)
     assert stage.position_counts() == stage.position_counts()  # slow but in time
     proxy.delay(CONFIG.reply_timeout_s + 2.0)
-    assert timed_failure(stage.position_counts, InstrumentTimeout) < BOUND
+    assert failing(stage.position_counts, InstrumentTimeout)[1] < BOUND
 
 
 def test_closed_connection_mid_move_is_a_disconnection(
@@ -92,7 +85,7 @@ def test_closed_connection_mid_move_is_a_disconnection(
     sim, proxy, stage = proxied
     stage.move_by(2e-3, wait=False)
     proxy.close()
-    assert timed_failure(stage.wait_until_stopped, Disconnected) < BOUND
+    assert failing(stage.wait_until_stopped, Disconnected)[1] < BOUND
     proxy.heal()
     with KDC101(f"socket://127.0.0.1:{proxy.port}", CONFIG, sim.clock) as again:
         again.stop()
@@ -110,7 +103,7 @@ def test_sigstopped_server_is_a_timeout_within_the_deadline(served: Served) -> N
     try:
         served.pause()
         try:
-            assert timed_failure(stage.position, InstrumentTimeout) < BOUND
+            assert failing(stage.position, InstrumentTimeout)[1] < BOUND
         finally:
             served.resume()
     finally:
@@ -122,7 +115,7 @@ def test_killed_server_is_a_disconnection_within_the_deadline(served: Served) ->
     try:
         stage.move_by(1e-3, wait=False)
         served.kill()
-        took = timed_failure(stage.wait_until_stopped, (Disconnected, InstrumentTimeout))
+        _, took = failing(stage.wait_until_stopped, (Disconnected, InstrumentTimeout))
         assert took < BOUND, took
     finally:
         stage.close()

@@ -5,7 +5,7 @@ stop first, and the driver recovers or reports Disconnected (ADR 0060)."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -16,7 +16,7 @@ from instrument.clock import RealClock, VirtualClock
 from instrument.errors import Disconnected, FramingError, InstrumentTimeout
 from instrument.rheometer import RheometerConfig
 from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
-from tests.faultproxy import FaultProxy
+from tests.faultproxy import FaultProxy, failing
 from tests.served import Served, serve
 
 TIMEOUT = 1.5
@@ -39,13 +39,6 @@ def proxied(rm: Any) -> Iterator[tuple[MCR501Simulator, FaultProxy, MCR501]]:
             drv.close()
 
 
-def timed_failure(call: Callable[[], object], error: type[Exception] | tuple[type[Exception], ...]
-                  ) -> float:
-    t0 = time.monotonic()
-    with pytest.raises(error):
-        call()
-    return time.monotonic() - t0
-
 
 @pytest.mark.parametrize(("fault", "error"), [
     ("swallow", InstrumentTimeout),
@@ -58,7 +51,7 @@ def test_wire_fault_while_turning_stops_first_then_raises_within_the_deadline(
     sim, proxy, drv = proxied
     drv.rotate(1e-3)
     getattr(proxy, fault)()
-    took = timed_failure(drv.torque, error)
+    _, took = failing(drv.torque, error)
     assert took < BOUND, took
     assert sim.log[-1] == ":STOP[]"  # the stop got through, though its answer did not
     assert sim.cell.spin.target == 0.0
@@ -72,7 +65,7 @@ def test_a_reply_later_than_the_timeout_is_a_timeout(
     proxy.delay(0.2)
     assert drv.identify().model == "MCR501"  # slow but in time
     proxy.delay(TIMEOUT + 2.0)
-    assert timed_failure(drv.gap, InstrumentTimeout) < BOUND
+    assert failing(drv.gap, InstrumentTimeout)[1] < BOUND
 
 
 def test_closed_connection_is_a_disconnection(
@@ -80,7 +73,7 @@ def test_closed_connection_is_a_disconnection(
     sim, proxy, drv = proxied
     drv.rotate(1e-3)
     proxy.close()
-    assert timed_failure(drv.torque, Disconnected) < BOUND
+    assert failing(drv.torque, Disconnected)[1] < BOUND
     proxy.heal()
     again = MCR501(f"TCPIP0::127.0.0.1::{proxy.port}::SOCKET", sim.clock, CONFIG,
                    resource_manager=rm).open()
@@ -107,7 +100,7 @@ def test_sigstopped_server_is_a_timeout_within_the_deadline_then_recovers(
         drv.rotate(1e-3)
         served.pause()
         try:
-            took = timed_failure(drv.torque, InstrumentTimeout)  # was 6.1 s at timeout 2 s
+            _, took = failing(drv.torque, InstrumentTimeout)  # was 6.1 s at timeout 2 s
             assert took < BOUND, took
             t0 = time.monotonic()
             drv.close()  # the stop on close is bounded too
@@ -126,6 +119,6 @@ def test_killed_server_is_a_disconnection_within_the_deadline(served: Served, rm
     try:
         drv.rotate(1e-3)
         served.kill()
-        assert timed_failure(drv.torque, Disconnected) < BOUND
+        assert failing(drv.torque, Disconnected)[1] < BOUND
     finally:
         drv.close()

@@ -29,7 +29,7 @@ from instrument.errors import (
     InstrumentTimeout,
 )
 from instrument.loadcell import LoadCellChain
-from tests.faultproxy import FaultProxy
+from tests.faultproxy import FaultProxy, failing
 from tests.served import ROOT, Served, serve
 
 RATE = 1000.0
@@ -54,14 +54,6 @@ def own_server() -> Iterator[Served]:
 def sensor_at(port: int, config: Usb6001Config = CONFIG) -> Usb6001ForceSensor:
     return Usb6001ForceSensor(f"grpc://127.0.0.1:{port}", config, LoadCellChain(), RealClock())
 
-
-def failing(call: object, error: type[Exception] | tuple[type[Exception], ...]
-            ) -> tuple[Exception, float]:
-    """The error ``call()`` raised and the seconds it took."""
-    t0 = time.monotonic()
-    with pytest.raises(error) as info:
-        call()  # type: ignore[operator]
-    return info.value, time.monotonic() - t0
 
 
 def test_the_interceptor_bounds_each_call_and_adds_a_reads_own_wait() -> None:

@@ -17,8 +17,8 @@ def test_defaults_are_the_protocol_documents_factors() -> None:
     assert c.m_from_counts(34555) == pytest.approx(1e-3, rel=2e-5)
 
 
-def test_from_mapping_accepts_units_and_si_numbers() -> None:
-    c = StageConfig.from_mapping(
+def test_from_table_accepts_units_and_si_numbers() -> None:
+    c = StageConfig.from_table(
         {"counts_per_mm": 34304, "max_position": "11.5 mm", "max_velocity": "1.2 mm/s",
          "acceleration": 0.002, "move_timeout": "2 min"}, "rig.toml")
     assert c.counts_per_mm == 34304
@@ -26,7 +26,7 @@ def test_from_mapping_accepts_units_and_si_numbers() -> None:
     assert c.max_velocity_m_s == pytest.approx(1.2e-3)
     assert c.acceleration_m_s2 == 0.002
     assert c.move_timeout_s == pytest.approx(120)
-    assert StageConfig.from_mapping(c.to_mapping(), "round trip") == c
+    assert StageConfig.from_table(c.to_table(), "round trip") == c
 
 
 @pytest.mark.parametrize(
@@ -46,7 +46,7 @@ def test_from_mapping_accepts_units_and_si_numbers() -> None:
 def test_bad_values_name_file_field_and_range(table: dict[str, object], field: str, says: str
                                               ) -> None:
     with pytest.raises(ConfigError) as info:
-        StageConfig.from_mapping(table, "rigs/compression.toml")
+        StageConfig.from_table(table, "rigs/compression.toml")
     assert info.value.field == field
     assert info.value.source == "rigs/compression.toml"
     assert says in str(info.value)

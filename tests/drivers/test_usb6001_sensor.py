@@ -268,15 +268,15 @@ def test_differential_wiring_is_passed_to_the_device(serve: Callable[..., Served
                                                      "[force] over_range_volts"),
      ({"device": 3}, "[force] device"), ({"speed": 1}, "[force] speed")],
 )
-def test_config_from_mapping_names_the_field(mapping: dict[str, object], field: str) -> None:
+def test_config_from_table_names_the_field(mapping: dict[str, object], field: str) -> None:
     with pytest.raises(ConfigError) as info:
-        Usb6001Config.from_mapping(mapping, "rig.toml")
+        Usb6001Config.from_table(mapping, "rig.toml")
     assert info.value.field == field
     assert info.value.source == "rig.toml"
 
 
-def test_config_from_mapping_accepts_units() -> None:
-    config = Usb6001Config.from_mapping(
+def test_config_from_table_accepts_units() -> None:
+    config = Usb6001Config.from_table(
         {"device": "Dev2", "channel": "ai3", "terminal": "diff", "buffer_seconds": "1 min"})
     assert (config.physical_channel, config.terminal, config.buffer_seconds) == (
         "Dev2/ai3", "DIFF", 60.0)

@@ -43,8 +43,8 @@ def test_volts_newtons_round_trip(force: float, rated: float, gain: float, offse
     assert float(chain.newtons(chain.volts(force))) == pytest.approx(force, abs=1e-9)
 
 
-def test_from_mapping_accepts_units() -> None:
-    chain = LoadCellChain.from_mapping(
+def test_from_table_accepts_units() -> None:
+    chain = LoadCellChain.from_table(
         {"capacity": "250 gram * 9.80665 m/s^2", "rated_output": "1.5 mV/V",
          "excitation": "5 V", "gain": 500, "offset": "12 mV", "bandwidth": "1 kHz"},
         "rig.toml",
@@ -68,11 +68,11 @@ def test_from_mapping_accepts_units() -> None:
         ({"sensitivity": 4}, "[force.chain] sensitivity", "unknown field"),
     ],
 )
-def test_from_mapping_names_field_value_and_range(
+def test_from_table_names_field_value_and_range(
     mapping: dict[str, object], field: str, needle: str
 ) -> None:
     with pytest.raises(ConfigError) as info:
-        LoadCellChain.from_mapping(mapping, "rig.toml")
+        LoadCellChain.from_table(mapping, "rig.toml")
     assert info.value.field == field
     assert info.value.source == "rig.toml"
     assert needle in str(info.value)

@@ -21,15 +21,15 @@ def test_defaults_are_the_papers_arm_and_placeholder_limits() -> None:
         cfg.arm = 0.03  # type: ignore[misc]
 
 
-def test_from_mapping_accepts_units_at_the_edge() -> None:
+def test_from_table_accepts_units_at_the_edge() -> None:
     table = {"arm": "27 mm", "torque_range": "150 mN*m", "max_speed": "0.3 mm/s"}
-    cfg = RheometerConfig.from_mapping({**table, "touch_gap": 2.5e-3, "timeout": 1})
+    cfg = RheometerConfig.from_table({**table, "touch_gap": 2.5e-3, "timeout": 1})
     assert cfg.arm == pytest.approx(0.027)
     assert cfg.torque_range == pytest.approx(0.15)
     assert cfg.max_speed == pytest.approx(3e-4)
     assert cfg.timeout == 1.0
     assert cfg.deepest_gap() == pytest.approx(2.5e-3 - cfg.overlap_limit)
-    assert RheometerConfig.from_mapping({"touch_gap": None}).touch_gap is None
+    assert RheometerConfig.from_table({"touch_gap": None}).touch_gap is None
 
 
 @pytest.mark.parametrize(
@@ -50,7 +50,7 @@ def test_bad_values_name_source_field_value_and_range(
     mapping: dict[str, object], field: str, allowed: str
 ) -> None:
     with pytest.raises(ConfigError) as err:
-        RheometerConfig.from_mapping(mapping, source="rig.toml [rheometer]")
+        RheometerConfig.from_table(mapping, source="rig.toml [rheometer]")
     assert err.value.field == field
     assert err.value.source == "rig.toml [rheometer]"
     assert allowed in str(err.value)
