@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from gelrig.commands._args import add_material, quantity
 from instrument.errors import ConfigError
 
 if TYPE_CHECKING:  # the model is imported when the command runs
-    from instrument.contact import Material
+    from instrument.contact import FloatArray, Material
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help="hold duration (s)")
     add_material(comp)
     comp.add_argument("--dt", type=quantity("s"), default=0.01, help="sample step (s, 0.01)")
+    add_unloading(comp)
     comp.add_argument("--out", required=True, help="CSV file: t_s,delta_m,force_N")
     comp.set_defaults(handler=run_compression)
 
@@ -44,8 +46,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="sample step (s; default: travel / 2000 samples)")
     shear.add_argument("--margin", type=quantity("m", strict=False), default=0.0,
                        help="travel before first touch and after psi0 on the far side (m)")
+    add_unloading(shear)
     shear.add_argument("--out", required=True, help="CSV: t_s,psi_m,delta_m,f_perp_N,f_h_N,f_v_N")
     shear.set_defaults(handler=run_shear)
+
+
+UNLOADING = ("cutoff", "mdr")
+
+
+def add_unloading(parser: argparse.ArgumentParser) -> None:
+    """--unloading cutoff|mdr: the paper's no-adhesion cutoff, or MDR (docs/decisions/0150)."""
+    parser.add_argument("--unloading", choices=UNLOADING, default="cutoff",
+                        help="unloading model: cutoff (the paper's, default) or mdr "
+                             "(viscoelastic MDR elements that separate and recover)")
+
+
+def _mdr_force(args: argparse.Namespace, radius: float, t: FloatArray, delta: FloatArray,
+               ) -> FloatArray:
+    """F_perp of a fresh MDR contact over the same samples (used with --unloading mdr)."""
+    from instrument.mdr import MdrContact
+
+    peak = max(float(delta.max()), 1e-9)
+    return MdrContact(_material(args), radius, delta_max=peak).block(t, delta)
 
 
 def _rate(text: str) -> tuple[str, float]:
@@ -88,6 +110,8 @@ def run_compression(args: argparse.Namespace) -> int:
         raise ConfigError("--depth", args.depth, f"must be < --radius ({args.radius:g} m)")
     check_samples(args.depth / speed + args.hold, args.dt, "ramp and hold")
     record = ramp_hold(args.radius, args.depth, speed, args.hold, _material(args), dt=args.dt)
+    if args.unloading == "mdr":
+        record = replace(record, force=_mdr_force(args, args.radius, record.t, record.delta))
     path = write_columns(args.out, {"t_s": record.t, "delta_m": record.delta,
                                     "force_N": record.force})
     print(f"wrote {record.t.size} samples (ramp {record.t_hold:.4g} s at {speed:.4g} m/s, "
@@ -108,6 +132,12 @@ def run_shear(args: argparse.Namespace) -> int:
         travel = 2 * (geometry.psi0 + args.margin)
         check_samples(travel / args.speed, args.dt, "pass")
     sp = shear_pass(geometry, _material(args), args.speed, args.mu, args.dt, args.margin)
+    if args.unloading == "mdr":
+        from instrument.sliding import resolve_forces
+
+        f_perp = _mdr_force(args, geometry.radius, sp.t, sp.delta)
+        f_h, f_v = resolve_forces(f_perp, sp.psi, geometry.h, args.mu)
+        sp = replace(sp, f_perp=f_perp, f_h=f_h, f_v=f_v)
     path = write_columns(args.out, {"t_s": sp.t, "psi_m": sp.psi, "delta_m": sp.delta,
                                     "f_perp_N": sp.f_perp, "f_h_N": sp.f_h, "f_v_N": sp.f_v})
     print(f"wrote {sp.t.size} samples (l_g {geometry.l_g * 1e3:.4g} mm, peak F_h "
