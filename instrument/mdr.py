@@ -334,6 +334,7 @@ class _Sub:
             self.h[i] = hereditary(dt, d, float(owner._tau[i]), owner.delta_last, 0.0)
         self.pp = np.exp(-np.outer(owner._rate, t - t[0]))  # P_i(n), 1 at the first sample
         self.q = owner._ke * d + owner._k @ self.h
+        self.d_peak = float(d.max())
         self.e0 = np.exp(-dt[0] * owner._rate)  # E_i at the first sample
         win = max(16, self.n // 1024)
         self.ws = np.arange(0, self.n, win)
@@ -352,25 +353,34 @@ class _Sub:
         self, j: IntArray, w: IntArray, start: IntArray, k: int,
         value: Callable[[IntArray, IntArray], FloatArray],
     ) -> IntArray:
-        """First sample >= start in the flagged windows where ``value(jj, idx) < 0``; n if none."""
+        """First sample >= start in the flagged windows where ``value(jj, idx) < 0``; n if none.
+
+        Rounds take each unresolved element's next 1, 3, 12, 48 ... flagged windows (in time
+        order), so an element whose switch lies in its first flagged window costs one window.
+        """
         first = np.full(k, self.n, dtype=np.intp)
+        if not j.size:
+            return first
+        order = np.lexsort((w, j))
+        j, w = j[order], w[order]
+        heads = np.flatnonzero(np.r_[True, j[1:] != j[:-1]])
+        rank = np.arange(j.size) - np.repeat(heads, np.diff(np.r_[heads, j.size]))
         per = max(1, _CHUNK // (self.win * max(1, self.o._k.size)))
-        pos = 0
         lanes = np.arange(self.win)
-        while pos < j.size:
-            jj, ww = j[pos : pos + per], w[pos : pos + per]
-            pos += per
-            keep = first[jj] == self.n
-            jj, ww = jj[keep], ww[keep]
-            if not jj.size:
-                continue
-            idx = self.ws[ww][:, None] + lanes[None, :]
-            valid = (idx < self.we[ww][:, None]) & (idx >= start[jj][:, None])
-            idx = np.minimum(idx, self.n - 1)
-            neg = valid & (value(jj, idx) < 0)
-            hit = neg.any(axis=1)
-            if hit.any():
-                np.minimum.at(first, jj[hit], idx[hit, np.argmax(neg[hit], axis=1)])
+        lo, hi = 0, 1
+        while lo <= int(rank.max()):
+            pick = np.flatnonzero((rank >= lo) & (rank < hi))
+            pick = pick[first[j[pick]] == self.n]
+            for s in range(0, pick.size, per):
+                jj, ww = j[pick[s : s + per]], w[pick[s : s + per]]
+                idx = self.ws[ww][:, None] + lanes[None, :]
+                valid = (idx < self.we[ww][:, None]) & (idx >= start[jj][:, None])
+                idx = np.minimum(idx, self.n - 1)
+                neg = valid & (value(jj, idx) < 0)
+                hit = neg.any(axis=1)
+                if hit.any():
+                    np.minimum.at(first, jj[hit], idx[hit, np.argmax(neg[hit], axis=1)])
+            lo, hi = hi, 4 * hi
         return first
 
     def first_exit(self, g: FloatArray, c: FloatArray, start: IntArray) -> IntArray:
@@ -455,7 +465,7 @@ class _Sub:
                 g = o._g[f_j]
                 beta = o._pv[:, None] * f_z
                 a = np.full(f_j.size, n, dtype=np.intp)
-                live = f_start < n
+                live = (f_start < n) & (g <= self.d_peak)  # w >= 0: none touches above
                 if live.any():
                     a[live] = self.first_entry(g[live], beta[:, live], f_tref[live],
                                                f_start[live])
