@@ -8,11 +8,17 @@ time): a 3000 s hold at 1 kHz (3e6 samples, 1 and 2 relaxation terms), one pass 
 ladder at 0.78 mm sampled every 1 um of travel (the simulator's sub-step) at the slowest and
 fastest speed, the same pass streamed in blocks of 1000 and 100 samples (as a simulator
 reads), and the per-sample reference update (MdrContact.step) on part of the pass.
+
+With ``--ladder`` it also runs the paper's full shear ladder through the simulated rig (as
+benchmarks/bench_protocols.py does) twice: as shipped, and with the rheometer simulator's
+contact swapped for MdrContact by a patch of simulators.mcr501.physics (until the simulator
+takes ``make_contact(..., unloading="mdr")``), and prints both wall times and their ratio.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 from collections.abc import Callable
 
 import numpy as np
@@ -56,10 +62,46 @@ def _row(name: str, n: int, mdr: float, cut: float | None) -> None:
     print(f"{name:44s} {n:>9d} {n / mdr / 1e6:12.3f} {cut_rate} {ratio}")
 
 
+def _ladder_wall(mdr: bool) -> float:
+    """Wall time (s) of the paper's shear ladder on the simulated rig, optionally with MDR."""
+    import tempfile
+    from pathlib import Path
+
+    from bench_protocols import run_protocol
+
+    import simulators.mcr501.physics as physics
+
+    patched = {}
+    if mdr:
+        def make(material: Material, radius: float) -> MdrContact:
+            return MdrContact(material, radius, delta_max=1e-3)
+
+        patched["NormalContact"] = physics.NormalContact
+        physics.NormalContact = make
+        for obj in vars(physics).values():
+            if isinstance(obj, type) and hasattr(obj, "_save") and hasattr(obj, "_restore"):
+                patched[obj.__name__] = (obj._save, obj._restore)
+                obj._save = lambda self: self.contact.save()
+                obj._restore = lambda self, state: self.contact.restore(state)
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            return run_protocol("shear", Path(folder))[0]
+    finally:
+        for name, value in patched.items():
+            if name == "NormalContact":
+                physics.NormalContact = value
+            else:
+                cls = getattr(physics, name)
+                cls._save, cls._restore = value
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--repeats", type=int, default=5)
-    repeats = parser.parse_args().repeats
+    parser.add_argument("--ladder", action="store_true",
+                        help="also time the paper's shear ladder on the simulated rig")
+    options = parser.parse_args()
+    repeats = options.repeats
     print(f"median of {repeats} runs; ratio = MDR time / cutoff time on the same samples")
     header = (f"{'record':44s} {'samples':>9s} {'MDR M/s':>12s} {'cutoff M/s':>12s} "
               f"{'ratio':>9s}")
@@ -97,6 +139,15 @@ def main() -> None:
     ref = median_time(lambda: _steps(lambda: MdrContact(m, rp, delta_max=paper.DELTA_MAX_SHOWN),
                                      tp[:k], dp[:k]), max(1, repeats // 2))
     _row("per-sample reference MdrContact.step", k, ref, None)
+    if options.ladder:
+        runs = max(1, repeats // 2)
+        cut_walls, mdr_walls = [], []
+        for _ in range(runs):  # interleaved, so a change in machine load hits both
+            cut_walls.append(_ladder_wall(False))
+            mdr_walls.append(_ladder_wall(True))
+        cut_wall, mdr_wall = statistics.median(cut_walls), statistics.median(mdr_walls)
+        print(f"paper shear ladder on the simulated rig, median of {runs}: cutoff "
+              f"{cut_wall:.1f} s, MDR {mdr_wall:.1f} s wall, ratio {mdr_wall / cut_wall:.2f}")
 
 
 if __name__ == "__main__":

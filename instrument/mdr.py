@@ -47,6 +47,8 @@ DELTA_MAX = 2e-3
 _SPAN = 8.0
 #: Most (element, sample, term) values evaluated at once while refining a switching time.
 _CHUNK = 2_000_000
+#: Blocks up to this many samples go through the per-sample update instead of the events.
+_SMALL = 16
 #: Backwards steps smaller than this (relative to the time) are round-off, taken as zero.
 _TIME_JITTER = 1e-12
 
@@ -66,6 +68,18 @@ class MdrBlock:
 
     force: FloatArray
     radius: FloatArray
+
+
+@dataclass(frozen=True)
+class MdrState:
+    """Saved state of an :class:`MdrContact` (see :meth:`MdrContact.save`)."""
+
+    t_last: float | None
+    delta_last: float
+    reach: int
+    contact: BoolArray
+    w: FloatArray
+    e: FloatArray
 
 
 class MdrContact:
@@ -154,6 +168,23 @@ class MdrContact:
         self._e = np.zeros((self._k.size, n))
         self.t_last: float | None = None
         self.delta_last = 0.0
+        self._reach = 0  # elements [reach:] have never been touched
+        self._cached_dt = math.nan
+        self._cached: tuple[FloatArray, FloatArray, FloatArray] = (
+            np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 0)))
+
+    def save(self) -> MdrState:
+        """A copy of the whole state, for a simulator that peeks ahead and comes back."""
+        return MdrState(self.t_last, self.delta_last, self._reach, self._contact.copy(),
+                        self._w.copy(), self._e.copy())
+
+    def restore(self, state: MdrState) -> None:
+        """Return to a state taken by :meth:`save` (of this contact)."""
+        self.t_last, self.delta_last, self._reach = state.t_last, state.delta_last, state.reach
+        self._contact, self._w, self._e = (state.contact.copy(), state.w.copy(),
+                                           state.e.copy())
+        self._x = (np.arange(self._w.size, dtype=float) + 0.5) * self.dx
+        self._g = np.asarray(self._x**2 / self.radius, dtype=float)
 
     @property
     def elements(self) -> int:
@@ -193,7 +224,7 @@ class MdrContact:
         """Advance to time ``t`` (s) at overlap ``delta`` (m); return F_perp (N)."""
         dt = self._dt(t)
         self._fit(delta)
-        force, _ = self._step(dt, float(delta))
+        force = self._step(dt, float(delta))
         self.t_last, self.delta_last = float(t), float(delta)
         return force
 
@@ -207,16 +238,19 @@ class MdrContact:
             dt = 0.0
         return dt
 
-    def _step(self, dt: float, delta: float) -> tuple[float, BoolArray]:
-        """The per-sample update of physics.md 1b, vectorised over elements."""
-        r = dt * self._rate
-        big_e = np.exp(-r)[:, None]
+    def _step(self, dt: float, delta: float) -> float:
+        """The per-sample update of physics.md 1b, vectorised over the elements that have
+        been touched or that the overlap reaches (the others stay untouched)."""
+        nl = max(self._reach, int(np.searchsorted(self._g, delta, side="right")))
+        if nl == 0:
+            return 0.0
+        big_e, wt, phi = self._step_constants(dt)
+        g, w, e, c = self._g[:nl], self._w[:nl], self._e[:, :nl], self._contact[:nl]
         dd = delta - self.delta_last
-        c = self._contact
-        w_c = delta - self._g
-        e_c = big_e * self._e + (_weight(r) * dd)[:, None]
+        w_c = delta - g
+        e_c = big_e * e + wt * dd
         q_c = self._density(w_c, e_c)
-        u_f = self._free(self._w - self._e, dt)
+        u_f = phi @ (w - e)
         w_f = self._p @ u_f
         stay = c & (q_c >= 0)
         leave = c & ~stay
@@ -224,20 +258,31 @@ class MdrContact:
         w_new = np.where(stay | enter, w_c, w_f)
         e_new = np.where(stay, e_c, w_new - u_f)
         if enter.any():
-            u0 = self._w[enter] - self._e[:, enter]
-            gap0 = self._w[enter] - (self.delta_last - self._g[enter])
+            u0 = w[enter] - e[:, enter]
+            gap0 = w[enter] - (self.delta_last - g[enter])
             theta = np.clip(gap0 / (gap0 - (w_f[enter] - w_c[enter])), 0.0, 1.0)
             e_new[:, enter] = self._enter(theta, dt, u0, w_c[enter])
         if leave.any():
-            q0 = self._density(self._w[leave], self._e[:, leave])
+            q0 = self._density(w[leave], e[:, leave])
             theta = np.clip(q0 / (q0 - q_c[leave]), 0.0, 1.0)
-            w_x, u_x = self._leave(theta, dt, dd, self.delta_last - self._g[leave],
-                                   self._e[:, leave])
+            w_x, u_x = self._leave(theta, dt, dd, self.delta_last - g[leave], e[:, leave])
             w_new[leave] = w_x
             e_new[:, leave] = w_x - u_x
         on = stay | enter
-        self._contact, self._w, self._e = on, w_new, e_new
-        return 2.0 * self.dx * float(self._density(w_new[on], e_new[:, on]).sum()), on
+        self._contact[:nl], self._w[:nl], self._e[:, :nl] = on, w_new, e_new
+        idx = np.flatnonzero(on)
+        if idx.size:
+            self._reach = max(self._reach, int(idx[-1]) + 1)
+        return 2.0 * self.dx * float(self._density(w_new[on], e_new[:, on]).sum())
+
+    def _step_constants(self, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """E_i, the weights (tau_i/dt)(1 - E_i) as columns, and the free propagator over dt."""
+        if dt != self._cached_dt:
+            r = dt * self._rate
+            phi = (self._v * np.exp(self._lam * dt)[None, :]) @ self._vinv
+            self._cached = (np.exp(-r)[:, None], _weight(r)[:, None], phi)
+            self._cached_dt = dt
+        return self._cached
 
     def _enter(
         self, theta: FloatArray, dt: float | FloatArray, u0: FloatArray, w1: FloatArray
@@ -305,6 +350,12 @@ class MdrContact:
         self._fit(float(d.max()))
         force = np.empty(t.size)
         radius = np.empty(t.size)
+        if t.size <= _SMALL:  # the per-sample update is cheaper than setting up the events
+            for n in range(t.size):
+                force[n] = self._step(float(dt[n]), float(d[n]))
+                radius[n] = self.contact_radius
+                self.t_last, self.delta_last = float(t[n]), float(d[n])
+            return MdrBlock(force, radius)
         finite = self._rate[self._rate > 0]
         rate = float(finite.max()) if finite.size else 0.0
         start = 0
@@ -336,62 +387,85 @@ class _Sub:
         self.q = owner._ke * d + owner._k @ self.h
         self.d_peak = float(d.max())
         self.e0 = np.exp(-dt[0] * owner._rate)  # E_i at the first sample
-        win = max(16, self.n // 1024)
+        win = max(32, self.n // 512)
         self.ws = np.arange(0, self.n, win)
         self.we = np.minimum(self.ws + win, self.n)
         self.win = win
 
     # -- searches -----------------------------------------------------------------
 
-    def _pairs(self, lower: FloatArray, start: IntArray) -> tuple[IntArray, IntArray]:
-        """(element, window) pairs whose lower bound is <= 0, windows from each start on."""
-        lower = np.where(self.we[None, :] - 1 < start[:, None], np.inf, lower)
-        w_idx, j_idx = np.nonzero(lower.T <= 0)  # ordered by window
-        return j_idx, w_idx
+    def _flags(self, lower: FloatArray, start: IntArray, w0: int) -> BoolArray:
+        """(element, window) flags: the lower bound (given from window w0 on) is <= 0 in a
+        window not before the element's start."""
+        flag = np.zeros((start.size, self.ws.size), dtype=bool)
+        flag[:, w0:] = (lower <= 0) & (self.we[None, w0:] - 1 >= start[:, None])
+        return flag
 
     def _refine(
-        self, j: IntArray, w: IntArray, start: IntArray, k: int,
+        self, flag: BoolArray, start: IntArray,
         value: Callable[[IntArray, IntArray], FloatArray],
     ) -> IntArray:
         """First sample >= start in the flagged windows where ``value(jj, idx) < 0``; n if none.
 
-        Rounds take each unresolved element's next 1, 3, 12, 48 ... flagged windows (in time
-        order), so an element whose switch lies in its first flagged window costs one window.
+        Each element's first flagged window is tried first (where a switch usually is); the
+        rest go in rounds of each unresolved element's next 3, 12, 48 ... flagged windows.
         """
+        k = flag.shape[0]
         first = np.full(k, self.n, dtype=np.intp)
-        if not j.size:
+        rows = np.flatnonzero(flag.any(axis=1))
+        if not rows.size:
             return first
-        order = np.lexsort((w, j))
-        j, w = j[order], w[order]
-        heads = np.flatnonzero(np.r_[True, j[1:] != j[:-1]])
+        head = np.argmax(flag[rows], axis=1)
+        self._try(rows, head, start, value, first)
+        left = rows[first[rows] == self.n]
+        if not left.size:
+            return first
+        sub = flag[left]
+        sub[np.arange(left.size), head[first[rows] == self.n]] = False
+        jl, w = np.nonzero(sub)  # row-major: by element, then window (time) order
+        if not jl.size:
+            return first
+        j = left[jl]
+        heads = np.flatnonzero(np.r_[True, jl[1:] != jl[:-1]])
         rank = np.arange(j.size) - np.repeat(heads, np.diff(np.r_[heads, j.size]))
-        per = max(1, _CHUNK // (self.win * max(1, self.o._k.size)))
-        lanes = np.arange(self.win)
-        lo, hi = 0, 1
-        while lo <= int(rank.max()):
+        lo, hi = 0, 3
+        top = int(rank.max())
+        while lo <= top:
             pick = np.flatnonzero((rank >= lo) & (rank < hi))
             pick = pick[first[j[pick]] == self.n]
-            for s in range(0, pick.size, per):
-                jj, ww = j[pick[s : s + per]], w[pick[s : s + per]]
-                idx = self.ws[ww][:, None] + lanes[None, :]
-                valid = (idx < self.we[ww][:, None]) & (idx >= start[jj][:, None])
-                idx = np.minimum(idx, self.n - 1)
-                neg = valid & (value(jj, idx) < 0)
-                hit = neg.any(axis=1)
-                if hit.any():
-                    np.minimum.at(first, jj[hit], idx[hit, np.argmax(neg[hit], axis=1)])
+            if pick.size:
+                self._try(j[pick], w[pick], start, value, first)
             lo, hi = hi, 4 * hi
         return first
+
+    def _try(
+        self, j: IntArray, w: IntArray, start: IntArray,
+        value: Callable[[IntArray, IntArray], FloatArray], first: IntArray,
+    ) -> None:
+        """Evaluate ``value`` in windows ``w`` of elements ``j``; lower ``first`` where < 0."""
+        per = max(1, _CHUNK // (self.win * max(1, self.o._k.size)))
+        lanes = np.arange(self.win)
+        for s in range(0, j.size, per):
+            jj, ww = j[s : s + per], w[s : s + per]
+            idx = self.ws[ww][:, None] + lanes[None, :]
+            valid = (idx < self.we[ww][:, None]) & (idx >= start[jj][:, None])
+            idx = np.minimum(idx, self.n - 1)
+            neg = valid & (value(jj, idx) < 0)
+            hit = neg.any(axis=1)
+            if hit.any():
+                np.minimum.at(first, jj[hit], idx[hit, np.argmax(neg[hit], axis=1)])
 
     def first_exit(self, g: FloatArray, c: FloatArray, start: IntArray) -> IntArray:
         """First sample >= start where an element in contact would have q < 0."""
         o = self.o
-        q_min = np.minimum.reduceat(self.q, self.ws)
+        w0 = int(start.min()) // self.win
+        ws, we = self.ws[w0:], self.we[w0:]
+        q_min = np.minimum.reduceat(self.q, ws)
         kc = o._k[:, None] * c  # (M, k)
-        ends = np.minimum(kc[:, :, None] * self.pp[:, None, self.ws],
-                          kc[:, :, None] * self.pp[:, None, self.we - 1]).sum(axis=0)
+        ends = np.minimum(kc[:, :, None] * self.pp[:, None, ws],
+                          kc[:, :, None] * self.pp[:, None, we - 1]).sum(axis=0)
         lower = q_min[None, :] - o._ke * g[:, None] + ends
-        j, w = self._pairs(lower, start)
+        flag = self._flags(lower, start, w0)
 
         def value(jj: IntArray, idx: IntArray) -> FloatArray:
             out = self.q[idx] - o._ke * g[jj][:, None]
@@ -399,32 +473,37 @@ class _Sub:
                 out += kc[i, jj][:, None] * self.pp[i, idx]
             return out
 
-        return self._refine(j, w, start, g.size, value)
+        return self._refine(flag, start, value)
 
     def first_entry(
         self, g: FloatArray, beta: FloatArray, tref: FloatArray, start: IntArray
     ) -> IntArray:
         """First sample >= start where a free element meets the indenter: delta - g >= w."""
         o = self.o
-        d_max = np.maximum.reduceat(self.d, self.ws)
-        lower = np.zeros((g.size, self.ws.size))
-        for m in range(o._lam.size):
-            s0 = np.maximum(self.t[self.ws][None, :] - tref[:, None], 0.0)
-            s1 = np.maximum(self.t[self.we - 1][None, :] - tref[:, None], 0.0)
-            b = beta[m][:, None]
-            lower += np.minimum(b * np.exp(o._lam[m] * s0), b * np.exp(o._lam[m] * s1))
-        j, w = self._pairs(lower - (d_max[None, :] - g[:, None]), start)
+        w0 = int(start.min()) // self.win
+        ws, we = self.ws[w0:], self.we[w0:]
+        d_max = np.maximum.reduceat(self.d, ws)
+        lower = np.zeros((g.size, ws.size))
+        dented = np.flatnonzero(np.any(beta != 0, axis=0))  # untouched elements: w = 0
+        if dented.size:
+            s0 = np.maximum(self.t[ws][None, :] - tref[dented, None], 0.0)
+            s1 = np.maximum(self.t[we - 1][None, :] - tref[dented, None], 0.0)
+            for m in range(o._lam.size):
+                b = beta[m, dented][:, None]
+                lower[dented] += np.minimum(b * np.exp(o._lam[m] * s0),
+                                            b * np.exp(o._lam[m] * s1))
+        flag = self._flags(lower - (d_max[None, :] - g[:, None]), start, w0)
 
         def value(jj: IntArray, idx: IntArray) -> FloatArray:
             wf = np.zeros(idx.shape)
             s = np.maximum(self.t[idx] - tref[jj][:, None], 0.0)
             for m in range(o._lam.size):
                 wf += beta[m, jj][:, None] * np.exp(o._lam[m] * s)
-            # the element touches where wf - (delta - g) <= 0; search for < 0 on a nudged value
+            # the element touches where wf - (delta - g) <= 0: mark those samples negative
             gap = wf - (self.d[idx] - g[jj][:, None])
             return np.where(gap <= 0, -1.0, 1.0)
 
-        return self._refine(j, w, start, g.size, value)
+        return self._refine(flag, start, value)
 
     # -- the phase loop -------------------------------------------------------------
 
@@ -487,6 +566,8 @@ class _Sub:
                 f_z = np.empty((m, 0))
                 f_tref = np.empty(0)
         o._contact, o._w, o._e = final_c, final_w, final_e
+        touched = [int(j.max()) + 1 for j, a, x, _ in spans if np.any(x > a)]
+        o._reach = max([o._reach, *touched])
         return self._sums(spans)
 
     def _entry_state(self, j: IntArray, a: IntArray, z: FloatArray, tref: FloatArray

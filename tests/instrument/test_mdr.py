@@ -281,3 +281,16 @@ def test_time_going_backwards_is_refused():
         contact.step(0.5, 1e-4)
     with pytest.raises(ValueError, match="decrease"):
         contact.block(np.array([2.0, 1.0]), np.array([1e-4, 1e-4]))
+
+
+def test_small_blocks_and_save_restore_give_the_same_record():
+    t, delta = wavy(4, 600)
+    whole = mdr_force(t, delta, TWO, R, delta_max=1.3e-3)
+    contact = MdrContact(TWO, R, delta_max=1.3e-3)
+    parts = []
+    for i in range(0, t.size, 5):  # below the size where the per-sample update takes over
+        saved = contact.save()
+        contact.step(t[i] + 0.5, 2e-3)  # a peek ahead (past the grid: it grows) ...
+        contact.restore(saved)  # ... forgotten
+        parts.append(contact.block(t[i : i + 5], delta[i : i + 5]))
+    np.testing.assert_allclose(np.concatenate(parts), whole, rtol=0, atol=1e-10 * whole.max())
