@@ -24,7 +24,9 @@ delta (shared by all elements) and ``P_i(t) = exp(-t/tau_i)``; while it is free 
 displacement is a sum of decaying modes. Only the switching times are searched per element
 (window bounds first, exact values only inside flagged windows), so a record costs
 O(samples * terms + elements * windows) instead of O(samples * elements). :meth:`step` is the
-plain per-sample update, vectorised over elements, and serves as the reference.
+plain per-sample update, vectorised over the touched elements; it serves as the reference
+(the batch equals it to rounding) and runs blocks of up to 16 samples, where setting up the
+events would cost more.
 """
 
 from __future__ import annotations
