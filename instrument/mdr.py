@@ -363,9 +363,8 @@ class MdrContact:
         start = 0
         while start < t.size:
             end = t.size
-            if rate > 0:
-                span = (t[start:] - t[start]) * rate
-                end = start + max(1, int(np.searchsorted(span, _SPAN, side="right")))
+            if rate > 0:  # keep (t - t_start) / tau_min <= _SPAN within a sub-block
+                end = max(start + 1, int(np.searchsorted(t, t[start] + _SPAN / rate, "right")))
             f, a = _Sub(self, t[start:end], d[start:end], dt[start:end]).run()
             force[start:end], radius[start:end] = f, a
             self.t_last, self.delta_last = float(t[end - 1]), float(d[end - 1])

@@ -115,18 +115,21 @@ def test_overlap_beyond_the_grid_grows_it_and_stays_exact():
 
 
 def ting(t, material, v, t_max):
-    """Ting's receding-contact solution for a sphere, ramp up then down at speed v.
+    """Ting's receding-contact solution for a sphere, ramp up then down at speed v, for any
+    Prony modulus G(t).
 
     While loading a = sqrt(R delta) and F is the Lee-Radok integral. After t_max the contact
     radius is a(t1) of the loading branch, t1 from int_{t1}^{t} G(t - s) d delta(s) = 0, i.e.
     Phi(t - t1) = 2 Phi(t - t_max) with Phi(u) = int_0^u G; the force is the Lee-Radok
     integral over the loading branch up to t1 only. Quadrature, no discretisation.
     """
-    (term,) = material.relax
-    ge, g1, tau = material.g_e, term.g, term.tau
+    ge, terms = material.g_e, material.relax
 
     def phi(u):
-        return ge * u + g1 * tau * -math.expm1(-u / tau)
+        return ge * u + sum(r.g * r.tau * -math.expm1(-u / r.tau) for r in terms)
+
+    def kernel(s, tn):
+        return sum(r.g * math.exp(-(tn - s) / r.tau) for r in terms) * 1.5 * v**1.5 * math.sqrt(s)
 
     k = hertz_prefactor(R, material.nu)
     force, radius = np.zeros(t.size), np.zeros(t.size)
@@ -139,25 +142,27 @@ def ting(t, material, v, t_max):
                 continue  # the contact has closed
             t1 = brentq(lambda s, tn=tn, target=target: phi(tn - s) - target, 0.0, t_max,
                         xtol=1e-14)
-        visc = quad(lambda s, tn=tn: g1 * math.exp(-(tn - s) / tau) * 1.5 * v**1.5
-                    * math.sqrt(s), 0.0, t1, epsabs=0.0, epsrel=1e-12)[0]
+        visc = quad(kernel, 0.0, t1, args=(tn,), epsabs=0.0, epsrel=1e-12)[0]
         force[n] = k * (ge * (v * t1) ** 1.5 + visc)
         radius[n] = math.sqrt(R * v * t1)
     return force, radius
 
 
-@pytest.mark.parametrize("t_max", [2.0, 10.0, 40.0])  # short, equal and long against tau
-def test_receding_contact_reproduces_ting(t_max):
+@pytest.mark.parametrize(
+    ("material", "t_max"),
+    [(SLS, 2.0), (SLS, 10.0), (SLS, 40.0), (TWO, 5.0)],  # short, equal, long against tau
+)
+def test_receding_contact_reproduces_ting(material, t_max):
     v = 1e-3 / t_max
     t = np.linspace(0.0, 2.0 * t_max, 4001)
     delta = v * np.where(t <= t_max, t, 2.0 * t_max - t)
-    f_ting, a_ting = ting(t, SLS, v, t_max)
-    contact = MdrContact(SLS, R, delta_max=1e-3)
+    f_ting, a_ting = ting(t, material, v, t_max)
+    contact = MdrContact(material, R, delta_max=1e-3)
     got = contact.block_detail(t, delta)
     assert np.max(np.abs(got.force - f_ting)) < 2e-5 * f_ting.max()
     assert np.max(np.abs(got.radius - a_ting)) <= contact.dx
     # and the cutoff model does not: the comparison has something to find
-    cut = normal_force(t, delta, SLS, R)
+    cut = normal_force(t, delta, material, R)
     assert np.max(np.abs(cut - f_ting)) > 1e-2 * f_ting.max()
 
 
