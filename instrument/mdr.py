@@ -545,7 +545,9 @@ class _Sub:
                 g = o._g[f_j]
                 beta = o._pv[:, None] * f_z
                 a = np.full(f_j.size, n, dtype=np.intp)
-                live = (f_start < n) & (g <= self.d_peak)  # w >= 0: none touches above
+                # free w >= sum of the negative modal weights (w >= 0 in continuous time,
+                # a little below 0 possible after a step much longer than a tau)
+                live = (f_start < n) & (g <= self.d_peak - np.minimum(beta, 0.0).sum(axis=0))
                 if live.any():
                     a[live] = self.first_entry(g[live], beta[:, live], f_tref[live],
                                                f_start[live])

@@ -35,7 +35,7 @@ REST = 60.0  # s between passes
 def pass_samples(speed: float, t0: float = 0.0) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Times (s), offsets psi (m) and overlaps (m) of one pass from psi0 + MARGIN."""
     start = GEOMETRY.psi0 + MARGIN
-    n = int(round(2 * start / STEP)) + 1
+    n = round(2 * start / STEP) + 1
     travel = np.arange(n) * STEP
     psi = start - travel
     return t0 + travel / speed, psi, GEOMETRY.overlap(psi)
@@ -82,7 +82,7 @@ def main() -> None:
               f"{lc['mdr2'] / GEOMETRY.l_g:16.4f} {fh['cutoff'].min() * 1e3:11.3f} "
               f"{fh['mdr'].min() * 1e3:11.3f} {fh['cutoff'].max() * 1e3:9.3f} "
               f"{fh['mdr'].max() * 1e3:9.3f} {fh['mdr2'].max() * 1e3:13.3f}")
-    for speed, x, dent, rested, _, _ in recovery:
+    for speed, _x, dent, rested, _, _ in recovery:
         print(f"{speed:10.3g}: dent at the centre after the pass {dent[0] * 1e6:.1f} um, "
               f"after {REST:g} s rest {rested[0] * 1e6:.1f} um")
     _plot_traces(traces)
