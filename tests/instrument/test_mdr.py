@@ -156,13 +156,14 @@ def test_receding_contact_reproduces_ting(material, t_max):
     v = 1e-3 / t_max
     t = np.linspace(0.0, 2.0 * t_max, 4001)
     delta = v * np.where(t <= t_max, t, 2.0 * t_max - t)
-    f_ting, a_ting = ting(t, material, v, t_max)
+    every = slice(None, None, 5)  # the quadrature oracle at every 5th sample
+    f_ting, a_ting = ting(t[every], material, v, t_max)
     contact = MdrContact(material, R, delta_max=1e-3)
     got = contact.block_detail(t, delta)
-    assert np.max(np.abs(got.force - f_ting)) < 2e-5 * f_ting.max()
-    assert np.max(np.abs(got.radius - a_ting)) <= contact.dx
+    assert np.max(np.abs(got.force[every] - f_ting)) < 2e-5 * f_ting.max()
+    assert np.max(np.abs(got.radius[every] - a_ting)) <= contact.dx
     # and the cutoff model does not: the comparison has something to find
-    cut = normal_force(t, delta, material, R)
+    cut = normal_force(t, delta, material, R)[every]
     assert np.max(np.abs(cut - f_ting)) > 1e-2 * f_ting.max()
 
 
