@@ -64,6 +64,14 @@ def _weight(r: FloatArray) -> FloatArray:
     return np.where(r > 0, -np.expm1(-safe) / safe, 1.0)
 
 
+def _fraction(num: FloatArray, den: FloatArray) -> FloatArray:
+    """Where in a step a linearly interpolated quantity crosses zero, in [0, 1]; 1 where
+    round-off leaves no crossing (den <= 0)."""
+    out = np.ones_like(num)
+    np.divide(num, den, out=out, where=den > 0)
+    return np.asarray(np.clip(out, 0.0, 1.0), dtype=float)
+
+
 @dataclass(frozen=True)
 class MdrBlock:
     """One batch of samples: F_perp (N) and the contact radius a (m) at each sample."""
@@ -262,11 +270,11 @@ class MdrContact:
         if enter.any():
             u0 = w[enter] - e[:, enter]
             gap0 = w[enter] - (self.delta_last - g[enter])
-            theta = np.clip(gap0 / (gap0 - (w_f[enter] - w_c[enter])), 0.0, 1.0)
+            theta = _fraction(gap0, gap0 - (w_f[enter] - w_c[enter]))
             e_new[:, enter] = self._enter(theta, dt, u0, w_c[enter])
         if leave.any():
             q0 = self._density(w[leave], e[:, leave])
-            theta = np.clip(q0 / (q0 - q_c[leave]), 0.0, 1.0)
+            theta = _fraction(q0, q0 - q_c[leave])
             w_x, u_x = self._leave(theta, dt, dd, self.delta_last - g[leave], e[:, leave])
             w_new[leave] = w_x
             e_new[:, leave] = w_x - u_x
@@ -585,7 +593,7 @@ class _Sub:
         w_now = self.d[a] - o._g[j]
         w_f = o._p @ (o._v @ (np.exp(o._lam[:, None] * (self.t[a] - tref)) * z))
         gap0 = o._p @ u0 - (d_prev - o._g[j])
-        theta = np.clip(gap0 / (gap0 - (w_f - w_now)), 0.0, 1.0)
+        theta = _fraction(gap0, gap0 - (w_f - w_now))
         return o._enter(theta, self.dt[a], u0, w_now)
 
     def _exit_state(
@@ -602,7 +610,7 @@ class _Sub:
         q_prev = o._density(w_prev, e_prev)
         e_now = self.h[:, x] + c * self.pp[:, x]
         q_now = o._density(self.d[x] - o._g[j], e_now)
-        theta = np.clip(q_prev / (q_prev - q_now), 0.0, 1.0)
+        theta = _fraction(q_prev, q_prev - q_now)
         dt = self.dt[x]
         dd = self.d[x] - d_prev
         _, u = o._leave(theta, dt, dd, w_prev, e_prev)
