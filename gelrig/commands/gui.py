@@ -49,6 +49,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     gui.set_defaults(handler=cmd_gui)
 
 
+def default_run_dir_parent() -> Path:
+    """The folder ``gelrig run`` records into by default (runs/)."""
+    return Path("runs")
+
+
 def make_services(rig_file: Path | None = None, pace: float = 1.0,
                   runs: Path | None = None) -> Services:
     """The GUI's services, wired to gelrig's loader, factory and session metadata."""
@@ -89,6 +94,7 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
         default_run_dir=run_dir,
         pace=pace,
         rig_dir=RIG_DIR,
+        runs_dir=runs if runs is not None else default_run_dir_parent(),
         protocol_dir=paper_protocol("compression").parent,
         analyze=analysis,
         rehearse=rehearsal,
