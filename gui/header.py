@@ -22,9 +22,17 @@ _STOP_STYLE = ("QPushButton { background:#c62828; color:white; font-weight:bold;
                "padding:6px 18px; border-radius:4px; }")
 
 
+def _shown(value: float, unit: str) -> str:
+    """Lengths in mm always (as the stage and the protocol files give them), else with a
+    prefix."""
+    if unit == "m":
+        return f"{value * 1e3:.4g} mm"
+    return quantity(value, unit)
+
+
 def live_text(values: Mapping[str, float]) -> str:
     """'position 6.2 mm   force 4.1 mN' from whichever live values there are."""
-    return "   ".join(f"{label} {quantity(values[key], unit)}" for key, label, unit in LIVE
+    return "   ".join(f"{label} {_shown(values[key], unit)}" for key, label, unit in LIVE
                        if key in values)
 
 

@@ -139,6 +139,8 @@ class MainWindow(QMainWindow):
         self.manual.set_kind(None)
         self._update_title()
         fit_to_screen(self)
+        left = min(460, round(self.width() * 0.34))  # a third for the panels at most
+        self.main_split.setSizes([left, self.width() - left])
 
     # ---- layout -------------------------------------------------------------------------
     def _build_menus(self) -> None:
@@ -194,6 +196,7 @@ class MainWindow(QMainWindow):
         main.addWidget(right)
         main.setStretchFactor(1, 1)
         main.setSizes([460, 1040])
+        self.main_split = main
         body = QWidget()
         column = QVBoxLayout(body)
         column.setContentsMargins(0, 0, 0, 0)
