@@ -87,6 +87,13 @@ def legend_html(entries: list[tuple[str, Qt.PenStyle, str]]) -> str:
     return "&nbsp;&nbsp;&nbsp; ".join(parts)
 
 
+def _shift(curve: pg.PlotDataItem, data: RunData) -> None:
+    """Show a time curve from the run's first sample (its data stay on the run's clock)."""
+    x = -(data.t0 if data.t0 is not None else 0.0)
+    if curve.pos().x() != x:
+        curve.setPos(x, 0)
+
+
 def _curve(plot: pg.PlotWidget, color: object, name: str | None = None,
            style: Qt.PenStyle = Qt.PenStyle.SolidLine, sorted_x: bool = True
            ) -> pg.PlotDataItem:
@@ -213,12 +220,12 @@ class CompressionPlots(LivePlots):
                 color = colour(step.index)
                 label = f"{step.index}. {step.name}"  # the curve's name (not drawn)
                 self._t_curves[step.index] = _curve(self.force_t, color, label)
-                self._t_curves[step.index].setPos(-(data.t0 or 0.0), 0)
                 self._z_curves[step.index] = _curve(self.force_z, color, label, sorted_x=False)
                 self._legend_add(color, Qt.PenStyle.SolidLine,
                                  f"step {step.index}: {step.name}")
                 self._t_decimators[step.index] = PeakDecimator()
                 self._z_decimators[step.index] = PeakDecimator()
+            _shift(self._t_curves[step.index], data)
             ts, fs = self._t_decimators[step.index].update(t, force)
             if self._full_view:
                 self._t_curves[step.index].setData(ts, fs)
@@ -332,11 +339,11 @@ class ShearPlots(LivePlots):
                     label = f"{step.index}. {step.name}"
                     self._time_curves[step.index] = (_curve(self.torque_t, color, label),
                                                      _curve(self.normal_t, color, label))
-                    for curve in self._time_curves[step.index]:
-                        curve.setPos(-(data.t0 or 0.0), 0)
                     self._legend_add(color, Qt.PenStyle.SolidLine,
                                      f"step {step.index}: {step.name} (time plots)")
                 torque, normal = self._time_curves[step.index]
+                _shift(torque, data)
+                _shift(normal, data)
                 torque.setData(t, cols["torque_Nm"])
                 normal.setData(t, cols["normal_force_N"])
             if "pass" in cols:

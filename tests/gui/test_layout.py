@@ -16,6 +16,7 @@ from PySide6.QtCore import QPoint, QPointF, Qt
 from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication, QScrollArea
 
+from gui import mainwindow
 from gui.fmt import quantity
 from gui.plots import ShearPlots
 from protocols.events import RunState
@@ -129,7 +130,8 @@ def test_title_menus_and_open_run_start_where_the_runs_are(qtbot, open_window, t
 
 
 def test_a_run_titles_the_window_numbers_steps_as_stored_and_shows_results(qtbot, open_window,
-                                                                          tmp_path):
+                                                                          tmp_path,
+                                                                          monkeypatch):
     window = open_window(math.inf)
     assert not window.report_button.isVisible()
     window.protocol.set_table(short_compression(hold="5 s"), "<test>")
@@ -155,6 +157,12 @@ def test_a_run_titles_the_window_numbers_steps_as_stored_and_shows_results(qtbot
     touch = meta["steps"][0]["results"]["first_touch_m"]
     log = window.log.toPlainText()
     assert f"step 0 result: first touch {quantity(touch, 'm', 6)} (spread" in log, log[-3000:]
+
+    opened = []
+    monkeypatch.setattr(mainwindow.QDesktopServices, "openUrl", opened.append)
+    window.report_button.click()  # analyses the run, then opens its HTML report
+    qtbot.waitUntil(lambda: bool(opened), timeout=60_000)
+    assert opened[0].toLocalFile() == str((run / "analysis" / "report.html").resolve())
 
     png = window.export_png(tmp_path / "plot.png")
     assert png is not None and png.stat().st_size > 1000
