@@ -33,6 +33,11 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#17becf", "#7f7f7f", "#bcbd22")
 
 
+#: Step colours of the shear time plots, apart from the first speeds' colours (no confusion
+#: in the shared legend).
+STEP_COLOURS = ("#555555", "#8c564b", "#e377c2", "#17becf", "#bcbd22")
+
+
 def colour(k: int) -> str:
     return COLOURS[k % len(COLOURS)]
 
@@ -335,7 +340,7 @@ class ShearPlots(LivePlots):
                 continue
             if "torque_Nm" in cols:
                 if step.index not in self._time_curves:
-                    color = colour(step.index)
+                    color = STEP_COLOURS[step.index % len(STEP_COLOURS)]
                     label = f"{step.index}. {step.name}"
                     self._time_curves[step.index] = (_curve(self.torque_t, color, label),
                                                      _curve(self.normal_t, color, label))

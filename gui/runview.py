@@ -62,7 +62,7 @@ def _fit_line(fit: Mapping[str, Any]) -> str:
     if "error" in fit:
         return f"fit failed: {fit['error']}"
     terms = ", ".join(f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
-                      f"tau_{k} {quantity(float(r['tau']), 's', 3)}"
+                      f"tau_{k} {quantity(float(r['tau']), 's', 4)}"
                       for k, r in enumerate(fit.get("relax", []), start=1))
     return f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}" + (f"; {terms}" if terms else "")
 

@@ -12,6 +12,7 @@ import sys
 import weakref
 from pathlib import Path
 
+import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
 from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication, QScrollArea
@@ -92,22 +93,25 @@ def test_escape_stops_a_manual_move_from_any_widget(qtbot, open_window):
     assert "STOP" in window.log.toPlainText()
 
 
-def test_at_2x_scaling_on_a_1440x900_screen_stop_and_the_status_bar_are_in_the_window(
-        tmp_path):
+@pytest.mark.parametrize(("screen", "scale"), [((1440, 900), 2), ((1280, 720), 1)])
+def test_stop_and_the_status_bar_lie_in_the_window_at_2x_and_at_1280x720(tmp_path, screen,
+                                                                           scale):
     """In a subprocess: the scale factor and the screen are fixed when Qt starts."""
     config = tmp_path / "screen.json"
-    config.write_text(json.dumps({"screens": [{"name": "s", "x": 0, "y": 0, "width": 1440,
-                                               "height": 900, "logicalDpi": 96, "dpr": 1}]}))
-    env = {**os.environ, "QT_SCALE_FACTOR": "2", "PYTHONPATH": str(ROOT),
+    config.write_text(json.dumps({"screens": [{"name": "s", "x": 0, "y": 0,
+                                               "width": screen[0], "height": screen[1],
+                                               "logicalDpi": 96, "dpr": 1}]}))
+    env = {**os.environ, "QT_SCALE_FACTOR": str(scale), "PYTHONPATH": str(ROOT),
            "QT_QPA_PLATFORM": f"offscreen:configfile={config}"}
     script = ROOT / "tests" / "gui" / "layout_probe.py"
     out = subprocess.run([sys.executable, str(script), str(tmp_path / "runs")], env=env,
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     probe = json.loads(out.stdout.strip().splitlines()[-1])
-    assert probe["screen"] == [720, 450]  # 1440x900 device pixels at 2x
+    logical = [screen[0] // scale, screen[1] // scale]  # 720x450 at 2x
+    assert probe["screen"] == logical
     width, height = probe["window"]
-    assert width <= 720 and height <= 450
+    assert width <= logical[0] and height <= logical[1]
     for name in ("stop", "status"):
         x, y, w, h = probe[name]
         assert probe[f"{name}_visible"], name
