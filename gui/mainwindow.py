@@ -5,34 +5,39 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt, QTimer
-from PySide6.QtGui import QCloseEvent
+from PySide6.QtCore import QObject, Qt, QTimer, QUrl, Signal
+from PySide6.QtGui import QCloseEvent, QDesktopServices, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
+    QApplication,
     QComboBox,
     QFileDialog,
     QLabel,
     QMainWindow,
     QMessageBox,
-    QPushButton,
     QScrollArea,
     QSplitter,
     QStackedWidget,
+    QTabWidget,
     QToolBar,
     QVBoxLayout,
     QWidget,
 )
 
+from gui import export, wheelguard
+from gui.header import Header
 from gui.instruments import InstrumentsPanel
 from gui.interlocks import InterlockBanner
 from gui.logpane import LogPane, QtLogHandler
 from gui.manual import Command, ManualPanel
-from gui.plots import CompressionPlots, LivePlots, ShearPlots, configure
+from gui.memory import release
+from gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gui.protocol_panel import ProtocolPanel, Rehearse
 from gui.rigsession import RigSession
-from gui.runview import RunWindow
+from gui.runview import RunWindow, step_lines
 from gui.services import Services
 from instrument.errors import GelrigError
 from protocols.events import (
@@ -55,8 +60,29 @@ PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100
 REDRAW_MS = 40
 #: A redraw may take at most this share of the GUI thread's time (more points: fewer frames).
 REDRAW_SHARE = 0.3
-_STOP_STYLE = ("QPushButton { background:#c62828; color:white; font-weight:bold; "
-               "padding:6px 18px; border-radius:4px; }")
+#: The window's preferred size (px); never larger than the screen's available area.
+PREFERRED_SIZE = (1500, 950)
+
+
+def fit_to_screen(window: QWidget) -> None:
+    """Size ``window`` to its preferred size within the available screen area (the window
+    frame allowed for), and place it at the area's top left."""
+    screen = window.screen() or QApplication.primaryScreen()
+    if screen is None:
+        window.resize(*PREFERRED_SIZE)
+        return
+    area = screen.availableGeometry()
+    frame_w, frame_h = 8, 32  # a typical title bar and border, before the frame is known
+    width = min(PREFERRED_SIZE[0], area.width() - frame_w)
+    height = min(PREFERRED_SIZE[1], area.height() - frame_h)
+    window.resize(max(width, 200), max(height, 150))
+    window.move(area.topLeft())
+
+
+class _Done(QObject):
+    """Carries a worker thread's result back to the GUI thread."""
+
+    ready = Signal(object, object)  # callback, value
 
 
 class MainWindow(QMainWindow):
@@ -68,7 +94,9 @@ class MainWindow(QMainWindow):
         self.services = services
         self._rehearse_for: tuple[RigSpec, Rehearse] | None = None
         self.session = RigSession(services, self)
-        self.setWindowTitle("gelrig")
+        app = QApplication.instance()
+        if isinstance(app, QApplication):
+            wheelguard.install(app)
         self.instruments = InstrumentsPanel()
         self.manual = ManualPanel()
         self.protocol = ProtocolPanel()
@@ -80,6 +108,14 @@ class MainWindow(QMainWindow):
         self.plot_stack = QStackedWidget()
         self.plot_stack.addWidget(self.compression_plots)
         self.plot_stack.addWidget(self.shear_plots)
+        self.idle_plots = IdlePlots()
+        self.header = Header(self.banner)
+        self.stop_button = self.header.stop_button
+        self.report_button = self.header.report_button
+        self._done = _Done(self)
+        self._done.ready.connect(lambda fn, value: fn(value),
+                                 Qt.ConnectionType.QueuedConnection)
+        self.shown_run: Path | None = None  # the run whose plots the window shows
         self.run_windows: list[RunWindow] = []
         self.last_message: QMessageBox | None = None
         self.close_after_run = False
@@ -87,9 +123,13 @@ class MainWindow(QMainWindow):
         self._trouble: tuple[str, str] | None = None  # (title, text) awaiting its safe state
         self._next_draw = 0.0
         self._last_read_error = ""
+        self._build_menus()
         self._build_toolbar()
         self._build_layout()
         self._wire()
+        self.stop_shortcut = QShortcut(QKeySequence(Qt.Key.Key_Escape), self)
+        self.stop_shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)
+        self.stop_shortcut.activated.connect(self.stop)
         self._log_handler = QtLogHandler(self.log, logging.WARNING)
         logging.getLogger().addHandler(self._log_handler)
         self._timer = QTimer(self)
@@ -97,17 +137,31 @@ class MainWindow(QMainWindow):
         self._timer.timeout.connect(self._tick)
         self._timer.start()
         self.manual.set_kind(None)
-        self.resize(1500, 950)
+        self._update_title()
+        fit_to_screen(self)
+        left = min(460, round(self.width() * 0.34))  # a third for the panels at most
+        self.main_split.setSizes([left, self.width() - left])
 
     # ---- layout -------------------------------------------------------------------------
+    def _build_menus(self) -> None:
+        menu = self.menuBar().addMenu("&File")
+        menu.addAction("Open &rig…", self.choose_rig)
+        menu.addAction("Open &protocol…", QKeySequence.StandardKey.Open, self.choose_protocol)
+        menu.addAction("Open r&un…", self.choose_run)
+        menu.addSeparator()
+        self.export_png_action = menu.addAction("Export plot as PN&G…", self.export_png)
+        self.export_csv_action = menu.addAction("Export data as &CSV…", self.export_csv)
+        self.report_action = menu.addAction("Open r&eport", self.open_report)
+        self.report_action.setEnabled(False)
+        menu.addSeparator()
+        menu.addAction("&Quit", QKeySequence.StandardKey.Quit, self.close)
+        help_menu = self.menuBar().addMenu("&Help")
+        help_menu.addAction("&About gelrig", self.about)
+
     def _build_toolbar(self) -> None:
-        bar = QToolBar("main")
+        bar = QToolBar("pace")
         bar.setMovable(False)
         self.addToolBar(bar)
-        bar.addAction("Open rig…", self.choose_rig)
-        bar.addAction("Open protocol…", self.choose_protocol)
-        bar.addAction("Open run…", self.choose_run)
-        bar.addSeparator()
         bar.addWidget(QLabel(" pace of simulated time: "))
         self.pace_box = QComboBox()
         for label, rate in PACES:
@@ -119,39 +173,40 @@ class MainWindow(QMainWindow):
             index = self.pace_box.count() - 1
         self.pace_box.setCurrentIndex(index)
         bar.addWidget(self.pace_box)
-        spacer = QWidget()
-        spacer.setSizePolicy(spacer.sizePolicy().horizontalPolicy().Expanding,
-                             spacer.sizePolicy().verticalPolicy())
-        bar.addWidget(spacer)
-        self.stop_button = QPushButton("STOP")
-        self.stop_button.setStyleSheet(_STOP_STYLE)
-        self.stop_button.setToolTip("stop all motion now (aborts a run)")
-        bar.addWidget(self.stop_button)
 
     def _build_layout(self) -> None:
-        left_top = QWidget()
-        column = QVBoxLayout(left_top)
-        column.addWidget(self.instruments)
-        column.addWidget(self.manual)
-        column.addStretch(1)
-        scroll = QScrollArea()
-        scroll.setWidgetResizable(True)
-        scroll.setWidget(left_top)
-        left = QSplitter(Qt.Orientation.Vertical)
-        left.addWidget(scroll)
-        left.addWidget(self.protocol)
-        left.setSizes([380, 560])
+        """Header (banner, live values, STOP) above everything; left: protocol, manual
+        control and instruments as tabs (each scrolls on its own); right: the run's plots or
+        the live manual plot, above the log. Every part shrinks, so the window fits 1280x720
+        and 2x scaling with STOP and the status bar in view."""
+        self.left_tabs = QTabWidget()
+        self.left_tabs.addTab(_scrolled(self.protocol), "Protocol")
+        self.left_tabs.addTab(_scrolled(self.manual), "Manual control")
+        self.left_tabs.addTab(_scrolled(self.instruments), "Instruments")
+        self.plot_tabs = QTabWidget()
+        self.plot_tabs.addTab(self.plot_stack, "Run")
+        self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
         right = QSplitter(Qt.Orientation.Vertical)
-        right.addWidget(self.banner)
-        right.addWidget(self.plot_stack)
+        right.addWidget(self.plot_tabs)
         right.addWidget(self.log)
-        right.setStretchFactor(1, 1)
-        right.setSizes([40, 700, 160])
+        right.setStretchFactor(0, 1)
+        right.setSizes([700, 160])
         main = QSplitter(Qt.Orientation.Horizontal)
-        main.addWidget(left)
+        main.addWidget(self.left_tabs)
         main.addWidget(right)
-        main.setSizes([480, 1020])
-        self.setCentralWidget(main)
+        main.setStretchFactor(1, 1)
+        main.setSizes([460, 1040])
+        self.main_split = main
+        body = QWidget()
+        column = QVBoxLayout(body)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.setSpacing(0)
+        column.addWidget(self.header)
+        column.addWidget(main, 1)
+        self.setCentralWidget(body)
+        for widget in (self.left_tabs, self.plot_tabs, self.log, self.plot_stack):
+            widget.setMinimumSize(0, 0)
+        self.log.setMinimumHeight(40)
         self.statusBar().showMessage("starting")
 
     def _wire(self) -> None:
@@ -174,6 +229,7 @@ class MainWindow(QMainWindow):
         self.protocol.resume_clicked.connect(self.resume)
         self.protocol.abort_clicked.connect(self.abort)
         self.stop_button.clicked.connect(self.stop)
+        self.report_button.clicked.connect(self.open_report)
         self.pace_box.currentIndexChanged.connect(self._on_pace)
 
     @property
@@ -204,6 +260,8 @@ class MainWindow(QMainWindow):
         self.banner.set_limits(spec.limits)
         self.plot_stack.setCurrentWidget(self.shear_plots if spec.kind == "shear"
                                          else self.compression_plots)
+        self.idle_plots.set_kind(spec.kind)
+        self._update_title()
         self.pace_box.setEnabled(spec.simulated)
         self.protocol.set_pace(self.session.pace, real_time=not spec.simulated)
         self.protocol.set_rig(spec.kind, spec.limits, connected=False,
@@ -243,6 +301,7 @@ class MainWindow(QMainWindow):
                               rehearse=self._rehearser(self.session.spec))
         self.statusBar().showMessage("connected")
         self.log.add(f"connected: {', '.join(rig.identities)}")
+        self._update_title()
 
     def _on_disconnected(self) -> None:
         self.instruments.set_rig(None)
@@ -264,6 +323,8 @@ class MainWindow(QMainWindow):
     def _on_readings(self, values: dict[str, float]) -> None:
         self.instruments.show_readings(values)
         self.banner.live(values)
+        self.header.show_live(values)
+        self.idle_plots.add(values)
         self._last_read_error = ""
 
     def _on_readings_failed(self, message: str) -> None:
@@ -281,6 +342,7 @@ class MainWindow(QMainWindow):
     def _on_manual(self, what: str, command: Command) -> None:
         if self.session.command(what, command):
             self.log.add(what)
+            self.plot_tabs.setCurrentWidget(self.idle_plots)
 
     def _on_command_failed(self, what: str, message: str) -> None:
         self.log.add(f"{what} failed: {message}; stopping all motion", "error")
@@ -305,8 +367,14 @@ class MainWindow(QMainWindow):
         if path:
             self.open_rig(Path(path))
 
+    def runs_dir(self) -> Path:
+        """Where runs are recorded (``--runs``): Open run starts there."""
+        folder = self.services.runs_dir or Path("runs")
+        return folder if folder.is_dir() else Path.cwd()
+
     def choose_run(self) -> None:
-        path = QFileDialog.getExistingDirectory(self, "Open a finished run", str(Path.cwd()))
+        path = QFileDialog.getExistingDirectory(self, "Open a finished run",
+                                                str(self.runs_dir()))
         if path:
             self.open_run(Path(path))
 
@@ -316,9 +384,17 @@ class MainWindow(QMainWindow):
         except (GelrigError, OSError, KeyError) as exc:
             self.message("Open run", f"{path}: {exc}")
             return None
+        window.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        window.destroyed.connect(lambda _=None, w=window: self._forget(w))
         self.run_windows.append(window)
         window.show()
         return window
+
+    def _forget(self, window: RunWindow) -> None:
+        """A closed run view: drop it (its data and curves go with it)."""
+        if window in self.run_windows:
+            self.run_windows.remove(window)
+        release()
 
     def run_protocol(self) -> None:
         spec = self.protocol.spec
@@ -349,6 +425,13 @@ class MainWindow(QMainWindow):
     def _on_run_started(self, path: Path) -> None:
         self._step_names.clear()
         self.plots.clear()
+        release()  # the previous run's buffers and curves
+        self.shown_run = path
+        self._update_title()
+        self.report_button.setVisible(False)
+        self.report_action.setEnabled(False)
+        self.plot_tabs.setCurrentIndex(0)
+        self.left_tabs.setCurrentIndex(0)
         self.banner.armed()
         self.manual.set_enabled(False)
         self.instruments.set_connected(True, busy=True)
@@ -357,6 +440,7 @@ class MainWindow(QMainWindow):
 
     def _on_run_finished(self, state: RunState, reason: str) -> None:
         self.plots.refresh(self.session.data)
+        release()  # what the runner and recorder held during the run
         self.protocol.set_state(state, reason)
         self.banner.disarmed()
         connected = self.session.rig is not None
@@ -365,6 +449,9 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"run {state.value}: {reason}; data in "
                                      f"{self.session.run_path}")
         self.log.add(f"run {state.value}: {reason}; data kept in {self.session.run_path}")
+        self.report_button.setVisible(self.services.analyze is not None)
+        self.report_action.setEnabled(self.services.analyze is not None)
+        self._update_title()
         if self.close_after_run:
             self.close()
 
@@ -374,6 +461,8 @@ class MainWindow(QMainWindow):
             self.log.add(f"step {event.index} started: {event.name} [{event.kind}]")
         elif isinstance(event, StepFinished):
             self.log.add(f"step {event.index} ({event.name}) {event.status}")
+            for line in step_lines(dict(event.results)):
+                self.log.add(f"step {event.index} result: {line.strip()}")
         elif isinstance(event, StateChanged):
             self.protocol.set_state(event.new, event.reason)
             self.log.add(f"{event.new.value}" + (f": {event.reason}" if event.reason else ""))
@@ -413,6 +502,103 @@ class MainWindow(QMainWindow):
         if latest:
             self.instruments.show_readings(latest)
             self.banner.live(latest)
+            self.header.show_live(latest)
+
+    # ---- title, export, report, about ---------------------------------------------------
+    def _update_title(self) -> None:
+        """'gelrig — <rig> (simulated) — run <dir> (running)'."""
+        parts = ["gelrig"]
+        spec = self.session.spec
+        if spec is not None:
+            parts.append(f"{spec.name} ({'simulated' if spec.simulated else 'hardware'})")
+        if self.shown_run is not None:
+            state = "running" if self.session.running else self.session.state.value
+            parts.append(f"run {self.shown_run.name} ({state})")
+        self.setWindowTitle(" — ".join(parts))
+
+    def export_png(self, path: Path | None = None) -> Path | None:
+        """The plots on show as a PNG (asks where unless ``path`` is given)."""
+        widget = self.plot_tabs.currentWidget()
+        if path is None:
+            chosen, _ = QFileDialog.getSaveFileName(self, "Export plot as PNG",
+                                                    str(self._export_start("plot.png")),
+                                                    "PNG images (*.png)")
+            if not chosen:
+                return None
+            path = Path(chosen)
+        if not widget.grab().save(str(path), "PNG"):
+            self.message("Export plot", f"{path}: could not write the image")
+            return None
+        self.log.add(f"plot exported to {path}")
+        return path
+
+    def export_csv(self, path: Path | None = None) -> Path | None:
+        """The run's samples (the columns the plots use, one row per sample with its step
+        index) as CSV; the full record stays in the run directory's HDF5 files."""
+        data = self.session.data
+        if not data.samples():
+            self.message("Export data", "no run data to export yet: run a protocol first")
+            return None
+        if path is None:
+            chosen, _ = QFileDialog.getSaveFileName(self, "Export data as CSV",
+                                                    str(self._export_start("data.csv")),
+                                                    "CSV files (*.csv)")
+            if not chosen:
+                return None
+            path = Path(chosen)
+        try:
+            rows = export.write_csv(data, path)
+        except OSError as exc:
+            self.message("Export data", f"{path}: {exc.strerror or exc}")
+            return None
+        self.log.add(f"{rows} samples exported to {path}")
+        return path
+
+    def _export_start(self, name: str) -> Path:
+        run = self.session.run_path
+        return (run / name) if run is not None else self.runs_dir() / name
+
+    def open_report(self) -> None:
+        """The last run's HTML report in the browser (analysing the run first if needed)."""
+        run, analyze = self.session.run_path, self.services.analyze
+        if run is None or analyze is None:
+            self.message("Open report", "no finished run to report on")
+            return
+        report = run / "analysis" / "report.html"
+        if report.exists():
+            self._show_report(report)
+            return
+        self.log.add(f"analysing {run} for its report…")
+        self.report_button.setEnabled(False)
+
+        def work() -> None:
+            try:
+                analyze(run)
+                result: object = report
+            except Exception as exc:  # shown, not raised: the GUI keeps running
+                result = exc
+            self._done.ready.emit(self._report_ready, result)
+
+        threading.Thread(target=work, daemon=True, name="gelrig-report").start()
+
+    def _report_ready(self, result: object) -> None:
+        self.report_button.setEnabled(True)
+        if isinstance(result, Path) and result.exists():
+            self._show_report(result)
+        else:
+            self.log.add(f"no report: {result}", "error")
+            self.message("Open report", f"the analysis wrote no report: {result}")
+
+    def _show_report(self, report: Path) -> None:
+        self.log.add(f"report: {report}")
+        QDesktopServices.openUrl(QUrl.fromLocalFile(str(report.resolve())))
+
+    def about(self) -> None:
+        QMessageBox.about(self, "About gelrig",
+                          "<b>gelrig</b>: contact mechanics of soft spheres — the plate-"
+                          "compression rig (KDC101 stage, USB-6001 DAQ) and the MCR 501 shear "
+                          "rig, their simulators, protocols in virtual time, analysis.<br><br>"
+                          "STOP or Esc stops all motion at any time.")
 
     def message(self, title: str, text: str) -> QMessageBox:
         """A clear, non-blocking message box (the GUI keeps running behind it)."""
@@ -446,6 +632,15 @@ class MainWindow(QMainWindow):
         self.protocol.cancel_rehearsal()
         logging.getLogger().removeHandler(self._log_handler)
         self.session.shutdown()
-        for window in self.run_windows:
+        for window in list(self.run_windows):
             window.close()
         event.accept()
+
+
+def _scrolled(widget: QWidget) -> QScrollArea:
+    """``widget`` in a scroll area that lets it shrink (a small window scrolls it)."""
+    scroll = QScrollArea()
+    scroll.setWidgetResizable(True)
+    scroll.setWidget(widget)
+    scroll.setMinimumSize(0, 0)
+    return scroll

@@ -26,7 +26,8 @@ from PySide6.QtWidgets import (
 
 from gui.fmt import entry_text, entry_value, quantity
 from instrument.errors import ConfigError
-from instrument.fields import Field, Where
+from instrument.fields import Field, Where, written_unit
+from instrument.units import convert
 from protocols.spec import ProtocolSpec, parse_protocol
 from protocols.steps import KINDS
 
@@ -45,6 +46,26 @@ class Entry:
     edit: QLineEdit
     error: QLabel
     is_list: bool = False
+    unit: QLabel | None = None
+
+    def shown_unit(self) -> str:
+        """The unit the entry is read in: the one typed ('0.5 mm/s'), else the field's own
+        display unit when the protocol file wrote one, else its SI unit (a bare number)."""
+        if self.field is None:
+            return ""
+        text = self.edit.text().strip()
+        typed = None if isinstance(entry_value(text), int | float) else written_unit(text)
+        return typed or self.field.unit
+
+    def show_unit(self) -> None:
+        """Beside the entry: the unit its value is in; in its tooltip, the allowed range in
+        that unit (what the protocol file uses, not SI)."""
+        if self.field is None or self.unit is None:
+            return
+        unit = self.shown_unit()
+        self.unit.setText(unit)
+        tip = self.field.allowed(unit)
+        self.edit.setToolTip(f"{self.field.help}\n{tip}" if self.field.help else tip)
 
     @property
     def name(self) -> str:
@@ -66,6 +87,8 @@ def _placeholder(f: Field | None) -> str:
         return "required" if f is not None else "default"
     if math.isnan(f.default):
         return "from an earlier step"
+    if f.display and f.unit:
+        return f"default {convert(f.default, f.unit, f.display):g} {f.display}"
     return f"default {quantity(f.default, f.unit) if f.unit else f'{f.default:g}'}"
 
 
@@ -146,7 +169,8 @@ class ProtocolForm(QWidget):
             grid.addWidget(edit, 2 * row, 1)
             grid.addWidget(unit, 2 * row, 2)
             grid.addWidget(error, 2 * row + 1, 1, 1, 2)
-            entry = Entry(i, key, f, edit, error, is_list)
+            entry = Entry(i, key, f, edit, error, is_list, unit)
+            entry.show_unit()
             edit.textChanged.connect(self.validate)
             self.entries.append(entry)
 
@@ -167,6 +191,7 @@ class ProtocolForm(QWidget):
         self.errors = []
         for e in self.entries:
             message = ""
+            e.show_unit()
             if e.field is not None and e.edit.text().strip():
                 try:
                     e.field.parse(e.value(), Where(f"step[{e.step}]"))

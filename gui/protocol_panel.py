@@ -192,7 +192,8 @@ class ProtocolPanel(QGroupBox):
             wall = " (as fast as possible)"
         else:
             wall = f" (≈ {lab_time(left / self.pace)} at {self.pace:g}x)"
-        what = f"step {progress.index + 1}/{len(self.plan.durations)}"
+        # the run's step index (as in run.json, the step files, the log and the plots)
+        what = f"step {progress.index} of 0–{len(self.plan.durations) - 1}"
         if step_name:
             what += f" {step_name}"
         if progress.message:

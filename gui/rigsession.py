@@ -243,7 +243,9 @@ class RigSession(QObject):
 
     def _run_done(self, state: RunState, reason: str) -> None:
         self.control = None
-        self._bridge = None  # every event it carried was delivered before this
+        bridge, self._bridge = self._bridge, None  # it delivered every event it carried
+        if bridge is not None:  # a child of the session: delete it, or it keeps the run's data
+            bridge.deleteLater()
         self.state = state
         if self.rig is not None:
             self._monitor.start()

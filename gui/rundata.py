@@ -18,7 +18,7 @@ from instrument.contact import FloatArray
 
 #: Columns kept for plotting and live readouts (compression and shear steps).
 KEPT = ("t_s", "force_N", "position_m", "theta_m", "angle_rad", "torque_Nm",
-        "normal_force_N", "gap_m", "pass", "direction", "speed_m_s")
+        "normal_force_N", "gap_m", "pass", "direction", "speed_m_s", "overlap_m")
 _START = 4096
 
 
@@ -89,6 +89,8 @@ class RunData:
         self._lock = threading.Lock()
         self._steps: dict[int, StepData] = {}
         self.version = 0  # bumped on every change, so a redraw can skip when nothing is new
+        #: the run's first sample time (s, run clock): plots show time from the run's start
+        self.t0: float | None = None
 
     def begin_step(self, index: int, name: str, kind: str, units: Mapping[str, str]) -> None:
         names = tuple(c for c in KEPT if c in units)
@@ -106,6 +108,8 @@ class RunData:
                 self._steps[index] = step
         n_new = step.columns.write(data)
         if n_new:
+            if self.t0 is None and "t_s" in data:
+                self.t0 = float(data["t_s"][0])
             with self._lock:
                 step.columns.n += n_new
                 self.version += 1

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QFontDatabase
+from PySide6.QtGui import QCloseEvent, QFontDatabase
 from PySide6.QtWidgets import QMainWindow, QPlainTextEdit, QSplitter, QWidget
 
 from gui.fmt import quantity
@@ -30,7 +30,8 @@ def load_run(path: Path) -> tuple[dict[str, Any], RunData]:
     steps = [*meta.get("steps", []),
              *({**s, "name": f"{s['name']} (interrupted)"}
                for s in meta.get("interrupted_steps", []))]
-    for key, step in enumerate(steps):
+    for key, step in enumerate(steps):  # the stored index, as in run.json and the file names
+        key = int(step.get("index", key))
         file = run.path / step["file"]
         if not file.exists():
             continue
@@ -49,12 +50,44 @@ def rig_kind(meta: Mapping[str, Any]) -> str:
 
 def _value(key: str, value: Any) -> str:
     if isinstance(value, float):
-        for suffix, unit in (("_m_s", "m/s"), ("_Nm", "N*m"), ("_m", "m"), ("_N", "N"),
-                             ("_rad", "rad"), ("_s", "s")):
+        for suffix, unit in (("_m_s", "m/s"), ("_Pa", "Pa"), ("_Nm", "N*m"), ("_m", "m"),
+                             ("_N", "N"), ("_rad", "rad"), ("_s", "s")):
             if key.endswith(suffix):
                 return quantity(value, unit, digits=6)
         return f"{value:.6g}"
     return str(value)
+
+
+def _fit_line(fit: Mapping[str, Any]) -> str:
+    if "error" in fit:
+        return f"fit failed: {fit['error']}"
+    terms = ", ".join(f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
+                      f"tau_{k} {quantity(float(r['tau']), 's', 4)}"
+                      for k, r in enumerate(fit.get("relax", []), start=1))
+    return f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}" + (f"; {terms}" if terms else "")
+
+
+def step_lines(results: Mapping[str, Any]) -> list[str]:
+    """A step's stored results as lines a scientist reads: first touch +- spread, scalars
+    with units, fits, the number of passes (shown when the step completes and in Open run)."""
+    lines = []
+    if isinstance(results.get("first_touch_m"), float):
+        touch = f"first touch {quantity(results['first_touch_m'], 'm', 6)}"
+        spread = results.get("first_touch_spread_m")
+        if isinstance(spread, float):
+            touch += f" (spread {quantity(spread, 'm', 3)})"
+        lines.append(touch)
+    for key, value in results.items():
+        if key in ("first_touch_m", "first_touch_spread_m"):
+            continue
+        if isinstance(value, int | float | str):
+            lines.append(f"{key} = {_value(key, value)}")
+    for fit in results.get("fits", []):
+        if isinstance(fit, Mapping) and ("G_e" in fit or "error" in fit):
+            lines.append(_fit_line(fit))
+    if "passes" in results:
+        lines.append(f"{len(results['passes'])} passes")
+    return lines
 
 
 def stored_summary(meta: Mapping[str, Any]) -> str:
@@ -63,21 +96,9 @@ def stored_summary(meta: Mapping[str, Any]) -> str:
              f"protocol: {meta.get('protocol_file', '?')}   rig: {meta.get('rig_file', '?')}   "
              f"clock: {meta.get('clock', '?')}"]
     for step in meta.get("steps", []):
-        lines.append(f"{step['index']}. {step['name']} [{step.get('kind', '')}]: "
+        lines.append(f"step {step['index']}. {step['name']} [{step.get('kind', '')}]: "
                      f"{step.get('status', '?')}, {step.get('samples', 0)} samples")
-        results = step.get("results") or {}
-        for key, value in results.items():
-            if isinstance(value, int | float | str):
-                lines.append(f"     {key} = {_value(key, value)}")
-        for fit in results.get("fits", []):
-            if "G_e" in fit:
-                terms = ", ".join(f"G {r['G']:.0f} Pa, tau {r['tau']:.0f} s"
-                                  for r in fit.get("relax", []))
-                lines.append(f"     fit: G_e {fit['G_e']:.0f} Pa; {terms}")
-            elif "error" in fit:
-                lines.append(f"     fit failed: {fit['error']}")
-        if "passes" in results:
-            lines.append(f"     {len(results['passes'])} passes")
+        lines.extend(f"     {line}" for line in step_lines(step.get("results") or {}))
     for trip in meta.get("interlock_trips", []):
         lines.append(f"interlock: {trip.get('message', trip)}")
     for fault in meta.get("faults", []):
@@ -95,7 +116,7 @@ class RunWindow(QMainWindow):
         super().__init__(parent)
         self.path = path
         self.meta, self.data = load_run(path)
-        self.setWindowTitle(f"gelrig — run {path}")
+        self.setWindowTitle(f"gelrig — run {path.name} ({self.meta.get('status', '?')})")
         self.plots: LivePlots = plots_for(rig_kind(self.meta))
         self.plots.refresh(self.data)
         self.summary = QPlainTextEdit()
@@ -123,6 +144,13 @@ class RunWindow(QMainWindow):
                    f"{self.stored}"
         with contextlib.suppress(RuntimeError):  # the window may be gone
             self._analysis.emit(text)
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt override)
+        """Let go of the run's samples and curves at once (an analysis thread may still
+        hold the window for a while)."""
+        self.plots.clear()
+        self.data = RunData()
+        event.accept()
 
     def _show_analysis(self, text: str) -> None:
         self.summary.setPlainText(text)

@@ -36,6 +36,8 @@ class Services:
     default_run_dir: Callable[[ProtocolSpec], Path]
     pace: float = 1.0
     rig_dir: Path | None = None
+    #: where run directories are created (``--runs``): Open run starts there
+    runs_dir: Path | None = None
     protocol_dir: Path | None = None
     analyze: Callable[[Path], str] | None = None
     #: the rehearsal of a protocol on the rig's twin (``gelrig plan``), run off the GUI thread
