@@ -73,7 +73,8 @@ def stored_summary(meta: Mapping[str, Any]) -> str:
             if "G_e" in fit:
                 terms = ", ".join(f"G {r['G']:.0f} Pa, tau {r['tau']:.0f} s"
                                   for r in fit.get("relax", []))
-                lines.append(f"     fit: G_e {fit['G_e']:.0f} Pa; {terms}")
+                why = f" -- {fit['not_resolved']}" if fit.get("not_resolved") else ""
+                lines.append(f"     fit: G_e {fit['G_e']:.0f} Pa; {terms}{why}")
             elif "error" in fit:
                 lines.append(f"     fit failed: {fit['error']}")
         if "passes" in results:
