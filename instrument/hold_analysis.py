@@ -73,10 +73,11 @@ def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, ho
     The recorded ``delta`` is the position less the contact search's estimate, from a fast
     probe with few samples in contact; the ramp crosses the same touch slowly with hundreds.
     """
-    z = np.asarray(position, dtype=float)
     f = np.asarray(force, dtype=float)
-    recorded = float(np.nanmedian(z - np.asarray(delta, dtype=float)))
-    start = ramp_start(z, hold_start)
+    z_stage = np.asarray(position, dtype=float)
+    recorded = float(np.nanmedian(z_stage - np.asarray(delta, dtype=float)))
+    start = ramp_start(z_stage, hold_start)
+    z = z_stage - compliance * f  # where the plate is, the load cell's deflection taken off
     touch: FirstTouch | None = None
     why = ""
     try:
@@ -87,8 +88,7 @@ def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, ho
             touch = None
     except ConfigError as exc:
         why = f"first touch not refitted on the ramp ({exc})"
-    base = touch.position if touch is not None else recorded
-    overlap = z - base - compliance * f
+    overlap = z - (touch.position if touch is not None else recorded)
     held = float(np.mean(overlap[hold_start:])) if overlap.size > hold_start else math.nan
     return MeasuredOverlap(recorded, touch, compliance, held, why), overlap
 

@@ -197,7 +197,7 @@ def ladder_summary(ladder: LadderStep, levels: Sequence[dict[str, float]],
     lines = [f"Shear ladder, step {index} ({name}): {len(ladder.analysis.results)} "
              f"passes, {len(overlaps)} overlaps x {len(speeds)} speeds; chord = l_g of the "
              "geometry at the set overlap",
-             f"  {'speed (m/s)':<33s}" + "".join(f"{v:>10.3g}" for v in speeds)]
+             f"  {'speed (m/s)':<35s}" + "".join(f"{v:>10.2e}" for v in speeds)]
     for o in overlaps:
         row = {r["speed_m_s"]: r for r in levels if r["overlap_m"] == o}
         chord = next((r.get("l_g_chord_m", math.nan) for r in row.values()), math.nan)
@@ -208,8 +208,8 @@ def ladder_summary(ladder: LadderStep, levels: Sequence[dict[str, float]],
 
         lines += [f"  {o * 1e3:.2f} mm  chord {chord * 1e3:6.3f} mm  l_g (mm) "
                   + cells("l_g_m", 1e3, ".3f"),
-                  f"  {'':<23s}l_c/l_g  " + cells("l_c_over_l_g", 1.0, ".4f"),
-                  f"  {'':<23s}mu       " + cells("mu", 1.0, ".4f")]
+                  f"  {'':<26s}l_c/l_g  " + cells("l_c_over_l_g", 1.0, ".4f"),
+                  f"  {'':<26s}mu       " + cells("mu", 1.0, ".4f")]
     if fit is not None:
         lines += _fit_summary(fit)
     return lines
