@@ -179,13 +179,21 @@ def analyse_hold(
         measured, overlap = measured_overlap(z_all[ok][: span.end], f_ok, d_ok, span.start,
                                              compliance)
         held = overlap
-    fits: list[RelaxationFit] = []
     errors: dict[int, str] = {}
-    for n in terms:
+    by_terms: dict[int, RelaxationFit] = {}
+    for n in sorted(set(terms), reverse=True):  # a fit carries those with fewer terms
+        if n in by_terms:
+            continue
         try:
-            fits.append(fit_hold(t_ok, f_ok, radius, held, nu, terms=n, delta=d_ok))
+            fit: RelaxationFit | None = fit_hold(t_ok, f_ok, radius, held, nu, terms=n,
+                                                 delta=d_ok)
         except ConfigError as exc:
             errors[n] = str(exc)
+            continue
+        while fit is not None:
+            by_terms.setdefault(len(fit.relax), fit)
+            fit = fit.fewer
+    fits = [by_terms[n] for n in terms if n in by_terms]
     t0 = float(t_ok[span.start])
     hold = t_ok >= t0
     # Without a fit the depth may be what failed (G(t) needs it > 0): no G(t) then.
