@@ -75,19 +75,26 @@ def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, ho
     """
     f = np.asarray(force, dtype=float)
     z_stage = np.asarray(position, dtype=float)
-    recorded = float(np.nanmedian(z_stage - np.asarray(delta, dtype=float)))
-    start = ramp_start(z_stage, hold_start)
+    offsets = z_stage - np.asarray(delta, dtype=float)
+    offsets = offsets[np.isfinite(offsets)]
+    recorded = float(np.median(offsets)) if offsets.size else math.nan
     z = z_stage - compliance * f  # where the plate is, the load cell's deflection taken off
     touch: FirstTouch | None = None
     why = ""
-    try:
-        touch = estimate_first_touch(z[start:hold_start], f[start:hold_start], relaxing=True)
-        if not recorded - 1e-3 < touch.position < float(z[hold_start]):
-            why = (f"the ramp's first touch {touch.position * 1e3:.4f} mm is not on the "
-                   "ramp")
-            touch = None
-    except ConfigError as exc:
-        why = f"first touch not refitted on the ramp ({exc})"
+    if 0 < hold_start < z.size:
+        start = ramp_start(z_stage, hold_start)
+        ramp = slice(start, hold_start)
+        good = np.isfinite(z[ramp]) & np.isfinite(f[ramp])
+        try:
+            touch = estimate_first_touch(z[ramp][good], f[ramp][good], relaxing=True)
+            if not (recorded - 1e-3 < touch.position < float(z[hold_start])):
+                why = (f"the ramp's first touch {touch.position * 1e3:.4f} mm is not on the "
+                       "ramp")
+                touch = None
+        except ConfigError as exc:
+            why = f"first touch not refitted on the ramp ({exc})"
+    else:
+        why = "no ramp before the hold"
     overlap = z - (touch.position if touch is not None else recorded)
     held = float(np.mean(overlap[hold_start:])) if overlap.size > hold_start else math.nan
     return MeasuredOverlap(recorded, touch, compliance, held, why), overlap

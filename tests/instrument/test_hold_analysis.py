@@ -8,7 +8,7 @@ import pytest
 from instrument import paper
 from instrument.compression import ramp_hold
 from instrument.contact import hertz_prefactor, normal_force
-from instrument.hold_analysis import NoHold, analyse_hold
+from instrument.hold_analysis import NoHold, analyse_hold, measured_overlap
 
 R, D, V = paper.R_COMPRESSION, paper.DEPTH_HOLD, paper.RAMP_SPEED
 HOLD = 600.0
@@ -165,3 +165,16 @@ def test_without_a_ramp_to_fit_the_recorded_touch_is_kept(record):
     out = analyse_hold(t, force, delta, R, D, terms=(1,), position=TOUCH + delta)
     assert out.overlap is not None
     assert out.overlap.first_touch == pytest.approx(TOUCH, abs=2e-6)
+
+
+def test_measured_overlap_without_a_ramp_or_with_gaps_keeps_going():
+    _, force, position = approach_and_hold()
+    delta = position - TOUCH
+    none, overlap = measured_overlap(position, force, delta, 0)
+    assert none.touch is None and none.why == "no ramp before the hold"
+    assert none.first_touch == pytest.approx(TOUCH) and overlap == pytest.approx(delta)
+    start = int(np.argmax(delta >= D - 1e-12))
+    gappy = force.copy()
+    gappy[start - 500:start - 490] = np.nan  # an over-range burst on the ramp
+    found, _ = measured_overlap(position, gappy, delta, start)
+    assert found.touch is not None and found.first_touch == pytest.approx(TOUCH, abs=1e-6)
