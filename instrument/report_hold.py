@@ -53,7 +53,7 @@ def fit_rows(fits: tuple[RelaxationFit, ...]) -> list[dict[str, object]]:
             params += [(f"G_{k}", term.g), (f"tau_{k}", term.tau)]
         rows += [{"terms": len(fit.relax), "parameter": p, "value": v,
                   "stderr": _stderr_cell(fit.stderr.get(p, math.nan)), "rmse_Pa": fit.rmse,
-                  "resolved": fit.terms_resolved}
+                  "resolved": fit.terms_resolved if fit.terms_resolved >= 0 else math.nan}
                  for p, v in params]
     return rows
 
