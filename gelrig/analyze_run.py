@@ -40,7 +40,7 @@ from instrument.model_fit import FitSetup, ModelFit
 from instrument.report import Section, write_report
 from instrument.report_hold import hold_problems, hold_section, hold_summary
 from instrument.report_ladder import ladder_section, ladder_summary
-from instrument.shear_analysis import LadderAnalysis
+from instrument.shear_analysis import LadderAnalysis, with_chords
 from instrument.store import RunDirectory, read_step
 
 
@@ -155,6 +155,18 @@ def load_steps(run: RunDirectory, meta: Mapping[str, Any], problems: list[str]) 
 
 # -- compression -----------------------------------------------------------------------------
 
+def _compliance(meta: Mapping[str, Any], problems: list[str]) -> float:
+    """The load cell's compliance (m/N) from the stored rig's ``[force.chain]``; 0 without."""
+    from protocols.rigfile import CompressionRigSpec, parse_rig
+
+    try:
+        rig = parse_rig(meta["rig"], "run.json rig")
+    except (KeyError, TypeError, ConfigError) as exc:
+        problems.append(f"no load-cell chain in the stored rig ({exc}); compliance taken as 0")
+        return 0.0
+    return float(rig.force.chain.compliance) if isinstance(rig, CompressionRigSpec) else 0.0
+
+
 def _hold(ctx: _Context, step: StepData) -> HoldAnalysis | None:
     """Analyse a ramp_hold step and add its section; None when there is no fit to show."""
     cols = step.columns
@@ -168,7 +180,9 @@ def _hold(ctx: _Context, step: StepData) -> HoldAnalysis | None:
         return None
     try:
         hold = analyse_hold(cols["t_s"], cols["force_N"], cols["delta_m"], diameter / 2,
-                            float(depth), float(step.params.get("hold", math.nan)))
+                            float(depth), float(step.params.get("hold", math.nan)),
+                            position=cols.get("position_m"),
+                            compliance=_compliance(ctx.meta, ctx.problems))
     except NoHold as exc:
         ctx.problems.append(f"{where}: {exc}")
         return None
@@ -216,9 +230,9 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
         return None
     model = _model_fit(ctx, steps, step, ladder) if ctx.fit_model else None
     fit = model.fit if model else None
-    levels = ladder.levels(fit, ctx.setup.s)
+    levels = with_chords(ladder.levels(fit, ctx.setup.s), ctx.setup.r1, ctx.setup.r2)
     ctx.sections.append(ladder_section(ladder, levels, model, step.index, step.name,
-                                       ctx.setup.arm, ctx.out))
+                                       ctx.setup, ctx.out))
     ctx.summary.extend(ladder_summary(ladder, levels, fit, step.index, step.name))
     return analysis, fit
 

@@ -64,7 +64,9 @@ def _fit_line(fit: Mapping[str, Any]) -> str:
     terms = ", ".join(f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
                       f"tau_{k} {quantity(float(r['tau']), 's', 4)}"
                       for k, r in enumerate(fit.get("relax", []), start=1))
-    return f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}" + (f"; {terms}" if terms else "")
+    why = f" -- {fit['not_resolved']}" if fit.get("not_resolved") else ""
+    return (f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}" + (f"; {terms}" if terms else "")
+            + why)
 
 
 def step_lines(results: Mapping[str, Any]) -> list[str]:

@@ -13,7 +13,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.analysis import MIN_HOLD_SAMPLES, RelaxationFit, fit_hold, modulus_history
+from instrument.analysis import (
+    MIN_HOLD_SAMPLES,
+    FirstTouch,
+    RelaxationFit,
+    estimate_first_touch,
+    fit_hold,
+    modulus_history,
+)
 from instrument.binning import bin_means
 from instrument.contact import FloatArray
 from instrument.errors import ConfigError, GelrigError
@@ -27,6 +34,70 @@ MIN_DURATION_FRACTION = 0.98
 
 class NoHold(GelrigError):
     """The record holds no hold that can be fitted (too short, or never reached the depth)."""
+
+
+@dataclass(frozen=True)
+class MeasuredOverlap:
+    """The overlap the hold fit uses: plate position less the first touch refitted on the
+    step's own ramp, less the load cell's deflection (m; ``compliance`` in m/N).
+
+    ``touch`` is None (and ``recorded_touch`` used) when the ramp could not be fitted;
+    ``why`` then says why. ``held`` is the mean measured overlap over the hold.
+    """
+
+    recorded_touch: float
+    touch: FirstTouch | None
+    compliance: float
+    held: float
+    why: str = ""
+
+    @property
+    def first_touch(self) -> float:
+        """The first touch used (m): the ramp's, else the recorded one."""
+        return self.touch.position if self.touch is not None else self.recorded_touch
+
+
+def ramp_start(position: FloatArray, hold_start: int) -> int:
+    """First sample of the ramp that ends at ``hold_start``: the plate moves forward without a
+    pause from there (before it, the tare's dwell or whatever came earlier)."""
+    step = np.diff(position[: hold_start + 1])
+    still = np.flatnonzero(step <= 0)
+    return int(still[-1]) + 1 if still.size else 0
+
+
+def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, hold_start: int,
+                     compliance: float = 0.0) -> tuple[MeasuredOverlap, FloatArray]:
+    """Refit first touch on the ramp before ``hold_start`` and return it with the measured
+    overlap at every sample (docs/decisions/0160).
+
+    The recorded ``delta`` is the position less the contact search's estimate, from a fast
+    probe with few samples in contact; the ramp crosses the same touch slowly with hundreds.
+    """
+    f = np.asarray(force, dtype=float)
+    z_stage = np.asarray(position, dtype=float)
+    offsets = z_stage - np.asarray(delta, dtype=float)
+    offsets = offsets[np.isfinite(offsets)]
+    recorded = float(np.median(offsets)) if offsets.size else math.nan
+    z = z_stage - compliance * f  # where the plate is, the load cell's deflection taken off
+    touch: FirstTouch | None = None
+    why = ""
+    if 0 < hold_start < z.size:
+        start = ramp_start(z_stage, hold_start)
+        ramp = slice(start, hold_start)
+        good = np.isfinite(z[ramp]) & np.isfinite(f[ramp])
+        try:
+            touch = estimate_first_touch(z[ramp][good], f[ramp][good], relaxing=True)
+            if not (recorded - 1e-3 < touch.position < float(z[hold_start])):
+                why = (f"the ramp's first touch {touch.position * 1e3:.4f} mm is not on the "
+                       "ramp")
+                touch = None
+        except ConfigError as exc:
+            why = f"first touch not refitted on the ramp ({exc})"
+    else:
+        why = "no ramp before the hold"
+    overlap = z - (touch.position if touch is not None else recorded)
+    held = float(np.mean(overlap[hold_start:])) if overlap.size > hold_start else math.nan
+    return MeasuredOverlap(recorded, touch, compliance, held, why), overlap
 
 
 @dataclass(frozen=True)
@@ -55,6 +126,7 @@ class HoldAnalysis:
     g: FloatArray
     fits: tuple[RelaxationFit, ...]
     fit_errors: dict[int, str] = field(default_factory=dict)
+    overlap: MeasuredOverlap | None = None
 
     @property
     def samples(self) -> int:
@@ -81,9 +153,13 @@ def analyse_hold(
     planned: float = math.nan,
     terms: Sequence[int] = (1, 2),
     nu: float = 0.5,
+    position: ArrayLike | None = None,
+    compliance: float = 0.0,
 ) -> HoldAnalysis:
     """Find the hold of a ramp-and-hold step, back-calculate G(t) over it and fit it with each
-    number of ``terms``; ``depth`` (m) is the hold overlap, ``planned`` (s) the hold time.
+    number of ``terms``; ``depth`` (m) is the planned hold overlap, ``planned`` (s) the hold
+    time. With the plate ``position`` (m), G(t) uses the measured overlap instead of ``depth``
+    (:func:`measured_overlap`; ``compliance`` in m/N).
 
     Samples where the force or the overlap is not finite are left out. Raises :class:`NoHold`
     when the record is too short or the ramp never came within 10 % of ``depth``.
@@ -92,6 +168,9 @@ def analyse_hold(
     f_all = np.asarray(force, dtype=float)
     d_all = np.asarray(delta, dtype=float)
     ok = np.isfinite(d_all) & np.isfinite(f_all)
+    z_all = None if position is None else np.asarray(position, dtype=float)
+    if z_all is not None:
+        ok &= np.isfinite(z_all)
     t_ok, f_ok, d_ok = t_all[ok], f_all[ok], d_all[ok]
     if t_ok.size < MIN_HOLD_SAMPLES:
         raise NoHold("no hold data to fit")
@@ -101,18 +180,34 @@ def analyse_hold(
                      f"(deepest {span.top * 1e3:.3f} mm)")
     # The retract after the hold is not part of it.
     t_ok, f_ok, d_ok = t_ok[: span.end], f_ok[: span.end], d_ok[: span.end]
-    fits: list[RelaxationFit] = []
+    measured: MeasuredOverlap | None = None
+    held: float | FloatArray = depth
+    if z_all is not None:
+        measured, overlap = measured_overlap(z_all[ok][: span.end], f_ok, d_ok, span.start,
+                                             compliance)
+        held = overlap
     errors: dict[int, str] = {}
-    for n in terms:
+    by_terms: dict[int, RelaxationFit] = {}
+    for n in sorted(set(terms), reverse=True):  # a fit carries those with fewer terms
+        if n in by_terms:
+            continue
         try:
-            fits.append(fit_hold(t_ok, f_ok, radius, depth, nu, terms=n, delta=d_ok))
+            fit: RelaxationFit | None = fit_hold(t_ok, f_ok, radius, held, nu, terms=n,
+                                                 delta=d_ok)
         except ConfigError as exc:
             errors[n] = str(exc)
+            continue
+        while fit is not None:
+            by_terms.setdefault(len(fit.relax), fit)
+            fit = fit.fewer
+    fits = [by_terms[n] for n in terms if n in by_terms]
     t0 = float(t_ok[span.start])
     hold = t_ok >= t0
     # Without a fit the depth may be what failed (G(t) needs it > 0): no G(t) then.
-    g = modulus_history(f_ok[hold], depth, radius, nu) if fits else np.full(hold.sum(), math.nan)
+    g = (modulus_history(f_ok[hold], held if np.ndim(held) == 0 else np.asarray(held)[hold],
+                         radius, nu)
+         if fits else np.full(hold.sum(), math.nan))
     return HoldAnalysis(
         span=span, radius=radius, depth=depth, duration=float(t_ok[-1] - t0), planned=planned,
-        t=t_ok[hold] - t0, g=g, fits=tuple(fits), fit_errors=errors,
+        t=t_ok[hold] - t0, g=g, fits=tuple(fits), fit_errors=errors, overlap=measured,
     )

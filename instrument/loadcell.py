@@ -51,6 +51,9 @@ class LoadCellChain(Config):
                                 help="conditioner output at no load"))
     bandwidth: float = param(Field("bandwidth", "Hz", 1000.0, 0.0, 1e6, lo_open=True,
                                    help="conditioner -3 dB frequency"))
+    compliance: float = param(Field("compliance", "m/N", 0.0, 0.0, 1e-2, display="um/N",
+                                    help="load cell deflection per newton: the hold analysis "
+                                         "subtracts it from the plate travel"))
 
     @property
     def sensitivity(self) -> float:

@@ -13,7 +13,7 @@ import numpy as np
 
 from instrument.contact import FloatArray
 from instrument.ladder_analysis import LadderModel, LadderStep
-from instrument.model_fit import ModelFit
+from instrument.model_fit import FitSetup, ModelFit
 from instrument.report import Column, Section, Table
 from instrument.report_plots import (
     FitPanel,
@@ -22,7 +22,7 @@ from instrument.report_plots import (
     plot_pass_curves,
     plot_vs_speed,
 )
-from instrument.shear_analysis import PassResult
+from instrument.shear_analysis import PassResult, with_chords
 
 #: Margin drawn either side of a pass's contact in the model-fit figures (fraction of l_c).
 PANEL_PAD = 0.15
@@ -30,8 +30,9 @@ PANEL_PAD = 0.15
 _PASS_COLUMNS = (
     Column("pass", "pass"), Column("direction", "dir"), Column("speed_m_s", "v (m/s)", digits=3),
     Column("overlap_m", "overlap (mm)", 1e3), Column("l_c_m", "l_c (mm)", 1e3),
-    Column("l_g_m", "l_g (mm)", 1e3), Column("l_c_over_l_g", "l_c/l_g"),
-    Column("f_h_peak_N", "F_h peak (mN)", 1e3), Column("f_h_trough_N", "F_h trough (mN)", 1e3),
+    Column("l_g_m", "l_g (mm)", 1e3), Column("l_g_chord_m", "chord (mm)", 1e3),
+    Column("l_c_over_l_g", "l_c/l_g"), Column("f_h_peak_N", "F_h peak (mN)", 1e3),
+    Column("f_h_trough_N", "F_h trough (mN)", 1e3),
     Column("f_v_peak_N", "F_v peak (mN)", 1e3),
     Column("zero_offset_m", "zero offset (um)", 1e6, 3), Column("mu", "mu", digits=3),
     Column("contact_start_m", "contact start (mm)", 1e3, 6),
@@ -39,7 +40,8 @@ _PASS_COLUMNS = (
 )
 _LEVEL_COLUMNS = (
     Column("overlap_m", "overlap (mm)", 1e3), Column("speed_m_s", "v (m/s)", digits=3),
-    Column("l_g_m", "l_g (mm)", 1e3), Column("l_g_geom_m", "l_g geometric, fit (mm)", 1e3),
+    Column("l_g_m", "l_g (mm)", 1e3), Column("l_g_chord_m", "chord at the set overlap (mm)", 1e3),
+    Column("l_g_over_chord", "l_g/chord"), Column("l_g_geom_m", "l_g geometric, fit (mm)", 1e3),
     Column("l_c_C_m", "l_c C (mm)", 1e3), Column("l_c_AC_m", "l_c AC (mm)", 1e3),
     Column("l_c_over_l_g", "mean l_c/l_g"), Column("mu_C", "mu C", digits=3),
     Column("mu_AC", "mu AC", digits=3), Column("mu", "mu (C+AC)/2", digits=3),
@@ -53,9 +55,11 @@ _FIT_COLUMNS = (
 _DEFINITIONS = (
     "l_c: first rise to return to baseline (5 sigma of the pre-contact noise, F_h or F_v); "
     "l_g: between the first-contact points of the clockwise and anticlockwise passes at the "
-    "same overlap and speed; mu: F_h/F_v at the centre of l_g (second-degree polynomials over "
-    "20 samples each side), averaged over C and AC, which cancels an error of the centre to "
-    "first order. Definitions: docs/decisions/0030-analysis-definitions.md."
+    "same overlap and speed; chord: 2 sqrt(S^2 - (S - delta)^2), S = R1 + R2, the geometric "
+    "l_g at the step's overlap setpoint delta below the touch gap the contact search found "
+    "(what l_g should equal, at every speed); mu: F_h/F_v at the centre of l_g (second-degree "
+    "polynomials over 20 samples each side), averaged over C and AC, which cancels an error "
+    "of the centre to first order. Definitions: docs/decisions/0030-analysis-definitions.md."
 )
 
 
@@ -65,12 +69,14 @@ def _level(r: PassResult) -> float:
 
 def ladder_section(
     ladder: LadderStep, levels: list[dict[str, float]], model: LadderModel | None,
-    index: int, name: str, arm: float, out: Path,
+    index: int, name: str, setup: FitSetup, out: Path,
 ) -> Section:
-    """The report section of an analysed ladder; its figures are written to ``out``."""
+    """The report section of an analysed ladder (``levels`` with their chords,
+    :func:`instrument.shear_analysis.with_chords`); its figures are written to ``out``."""
     results = ladder.analysis.results
     section = Section(f"Shear: {name} (step {index})", [
-        f"{len(results)} passes analysed; arm {arm * 1e3:g} mm. {_DEFINITIONS}"])
+        f"{len(results)} passes analysed; arm {setup.arm * 1e3:g} mm, R1 "
+        f"{setup.r1 * 1e3:g} mm, R2 {setup.r2 * 1e3:g} mm. {_DEFINITIONS}"])
     prefix = f"ladder_{index:02d}"
     section.figures += _pass_figures(ladder, out, prefix)
     section.figures += _speed_figures(levels, model.fit if model else None, out, prefix)
@@ -81,7 +87,9 @@ def ladder_section(
                                     _FIT_COLUMNS, model.fit.rows(), f"{prefix}_model_fit.csv"))
     section.tables += [
         Table("Per (overlap, speed)", _LEVEL_COLUMNS, levels, f"{prefix}_levels.csv"),
-        Table("Per pass", _PASS_COLUMNS, [r.row() for r in results], f"{prefix}_passes.csv"),
+        Table("Per pass", _PASS_COLUMNS,
+              with_chords([r.row() for r in results], setup.r1, setup.r2),
+              f"{prefix}_passes.csv"),
     ]
     return section
 
@@ -182,21 +190,26 @@ def _model_figures(ladder: LadderStep, model: LadderModel, out: Path,
 
 def ladder_summary(ladder: LadderStep, levels: Sequence[dict[str, float]],
                    fit: ModelFit | None, index: int, name: str) -> list[str]:
-    """The stdout summary's lines for a ladder: l_c/l_g and mu per level, then the fit."""
+    """The stdout summary's lines for a ladder: per overlap the chord at the set overlap and,
+    per speed, the measured l_g, l_c/l_g and mu; then the fit."""
     speeds = sorted({r["speed_m_s"] for r in levels})
     overlaps = sorted({r["overlap_m"] for r in levels})
     lines = [f"Shear ladder, step {index} ({name}): {len(ladder.analysis.results)} "
-             f"passes, {len(overlaps)} overlaps x {len(speeds)} speeds"]
-    head = "".join(f"{v:>11.3g}" for v in speeds)
-    lines.append(f"  {'l_c/l_g':<14s}{head}   | mu (C+AC)/2 at the same speeds")
+             f"passes, {len(overlaps)} overlaps x {len(speeds)} speeds; chord = l_g of the "
+             "geometry at the set overlap",
+             f"  {'speed (m/s)':<35s}" + "".join(f"{v:>10.2e}" for v in speeds)]
     for o in overlaps:
         row = {r["speed_m_s"]: r for r in levels if r["overlap_m"] == o}
-        ratio = "".join(f"{row[v]['l_c_over_l_g']:>11.4f}" if v in row else f"{'-':>11s}"
-                        for v in speeds)
-        mu = "".join(f"{row[v]['mu']:>9.4f}" if v in row else f"{'-':>9s}" for v in speeds)
-        lgs = [r["l_g_m"] for r in row.values() if math.isfinite(r["l_g_m"])]
-        lg = f"{np.mean(lgs) * 1e3:5.2f}" if lgs else f"{'-':>5s}"
-        lines.append(f"  {o * 1e3:.2f} mm l_g {lg}{ratio}   |{mu}")
+        chord = next((r.get("l_g_chord_m", math.nan) for r in row.values()), math.nan)
+
+        def cells(key: str, scale: float, fmt: str, row: dict = row) -> str:
+            return "".join(f"{row[v][key] * scale:>10{fmt}}" if v in row else f"{'-':>10s}"
+                           for v in speeds)
+
+        lines += [f"  {o * 1e3:.2f} mm  chord {chord * 1e3:6.3f} mm  l_g (mm) "
+                  + cells("l_g_m", 1e3, ".3f"),
+                  f"  {'':<26s}l_c/l_g  " + cells("l_c_over_l_g", 1.0, ".4f"),
+                  f"  {'':<26s}mu       " + cells("mu", 1.0, ".4f")]
     if fit is not None:
         lines += _fit_summary(fit)
     return lines

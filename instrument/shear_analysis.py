@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from instrument.contact import FloatArray
 from instrument.errors import ConfigError
 from instrument.noise import resolution_step, robust_sigma
+from instrument.sliding import SlidingGeometry
 
 BoolArray = NDArray[np.bool_]
 
@@ -381,3 +382,29 @@ def geometric_l_g(
         return math.nan
     h = s - (touch_gap - float(np.mean(gaps)))
     return 2.0 * math.sqrt(max(s * s - h * h, 0.0))
+
+
+def chord(r1: float, r2: float, overlap: float) -> float:
+    """The chord ``2 psi0`` (m): the geometric contact length of spheres ``r1``, ``r2`` (m)
+    passing at ``overlap`` (m) below the touch gap (:attr:`instrument.sliding.SlidingGeometry.
+    l_g`); NaN for an overlap that is not in (0, R1 + R2).
+
+    The ladder sets ``gap = touch_gap - overlap`` with the touch gap its contact search found,
+    so at the step's overlap setpoint this is the l_g the measured one should equal.
+    """
+    try:
+        return SlidingGeometry(r1, r2, overlap).l_g
+    except ConfigError:
+        return math.nan
+
+
+def with_chords(rows: Sequence[Mapping[str, float]], r1: float, r2: float
+                ) -> list[dict[str, float]]:
+    """Table rows (per pass or per level, each with ``overlap_m``, ``l_g_m`` and ``l_c*``)
+    with ``l_g_chord_m`` (the chord at the overlap setpoint) and ``l_g_over_chord``."""
+    out = []
+    for row in rows:
+        c = chord(r1, r2, float(row["overlap_m"]))
+        out.append({**row, "l_g_chord_m": c,
+                    "l_g_over_chord": float(row["l_g_m"]) / c if c > 0 else math.nan})
+    return out

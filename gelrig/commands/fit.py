@@ -1,9 +1,15 @@
-"""``gelrig fit relaxation FILE.csv``: the hold's Prony fit as JSON on stdout."""
+"""``gelrig fit relaxation FILE.csv``: the hold's Prony fit as JSON on stdout.
+
+The JSON holds the fit with as many terms as the data resolve (``terms_resolved``; the fit as
+requested is under ``unresolved_fit`` then, and ``not_resolved`` says why, also on stderr).
+An undetermined standard error is ``null``.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from gelrig.commands._args import poisson, quantity
 
@@ -18,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     relax.add_argument("--depth", required=True, type=quantity("m"), help="hold overlap (m)")
     relax.add_argument("--nu", type=poisson, default=0.5, help="Poisson ratio (default 0.5)")
     relax.add_argument("--terms", type=int, choices=(1, 2), default=1,
-                       help="relaxation terms (default 1)")
+                       help="relaxation terms to try (default 1); a term the data do not "
+                            "resolve is not reported")
     relax.set_defaults(handler=run)
 
 
@@ -30,4 +37,7 @@ def run(args: argparse.Namespace) -> int:
     fit = fit_hold(cols["t_s"], cols["force_N"], args.radius, args.depth, args.nu, args.terms,
                    delta=cols.get("delta_m"))
     print(json.dumps(fit.as_dict(), indent=2))
+    if fit.not_resolved:
+        print(f"gelrig fit: {fit.not_resolved}; reporting {len(fit.resolved.relax)} term(s)",
+              file=sys.stderr)
     return 0

@@ -9,6 +9,8 @@ from typing import Any, ClassVar
 from instrument.analysis import fit_hold
 from instrument.errors import GelrigError
 from instrument.fields import Field, param
+from instrument.hold import find_hold
+from instrument.hold_analysis import measured_overlap
 from protocols.caps import stage_position_error, stage_speed_error
 from protocols.context import StepContext
 from protocols.rig import CompressionLimits, CompressionRig
@@ -62,13 +64,16 @@ class RampHoldParams(StepParams):
 
 @dataclass(frozen=True)
 class RampHoldResult(StepResult):
-    """Where the hold was, how many samples it has, and the relaxation fits (1..terms)."""
+    """Where the hold was, how many samples it has, and the relaxation fits (1..terms); the
+    first touch refitted on the ramp and the measured overlap the fits used."""
 
     first_touch_m: float
     depth_m: float
     speed_m_s: float
     samples: int
     fits: list[dict[str, Any]] = field(default_factory=list)
+    first_touch_ramp_m: float = float("nan")
+    measured_depth_m: float = float("nan")
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
@@ -157,11 +162,18 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         rec.keep = False
         rec.until_stopped()
         fits: list[dict[str, Any]] = []
+        # the fit uses the measured overlap: first touch refitted on this ramp, less the load
+        # cell's deflection (docs/decisions/0160)
+        chain = getattr(rig.force, "chain", None)
+        measured, overlap = measured_overlap(
+            cols["position_m"], cols["force_N"], cols["delta_m"],
+            find_hold(delta=cols["delta_m"]).start, float(getattr(chain, "compliance", 0.0)))
         for terms in range(1, int(p.terms) + 1):
             try:
-                fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, depth,
+                fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
                                terms=terms, delta=cols["delta_m"])
                 fits.append(fit.as_dict())
             except GelrigError as exc:
                 fits.append({"error": str(exc)})
-        return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits)
+        return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits,
+                              measured.first_touch, measured.held)

@@ -194,3 +194,28 @@ def test_not_a_run_directory(tmp_path):
     (tmp_path / "run.json").write_text(json.dumps({"steps": []}))
     with pytest.raises(ConfigError, match="no analysable"):
         analyze_run(tmp_path, tmp_path / "out")
+
+
+def test_the_ladder_shows_the_chord_per_pass_and_per_speed(shear_report):
+    """Issue 14 item 4: the measured l_g beside the chord 2 psi0 at the set overlap (the
+    ladder's touch gap), per (overlap, speed) and per pass, in the summary and the report."""
+    s = 9.2e-3 + 9.96e-3  # R1 + R2 of analyze_run's defaults (the paper's)
+    text = shear_report.report_path.read_text()
+    levels = (shear_report.out_dir / "ladder_00_levels.csv").read_text().splitlines()
+    header = levels[0].split(",")
+    assert {"l_g_m", "l_g_chord_m", "l_g_over_chord", "l_c_over_l_g"} <= set(header)
+    for line in levels[1:]:
+        row = dict(zip(header, line.split(","), strict=True))
+        overlap = float(row["overlap_m"])
+        expect = 2 * math.sqrt(s**2 - (s - overlap) ** 2)
+        assert float(row["l_g_chord_m"]) == pytest.approx(expect, rel=1e-9)
+        assert float(row["l_g_over_chord"]) == pytest.approx(
+            float(row["l_g_m"]) / expect, rel=1e-9)
+    passes = (shear_report.out_dir / "ladder_00_passes.csv").read_text().splitlines()[0]
+    assert "l_g_chord_m" in passes.split(",")
+    assert "chord at the set overlap" in text
+    summary = shear_report.summary
+    for overlap in (0.45e-3, 0.70e-3):
+        chord = 2 * math.sqrt(s**2 - (s - overlap) ** 2)
+        assert f"{overlap * 1e3:.2f} mm  chord {chord * 1e3:6.3f} mm  l_g (mm)" in summary
+    assert summary.count("l_c/l_g") >= 2

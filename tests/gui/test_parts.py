@@ -124,3 +124,15 @@ def test_pace_option_of_gelrig_gui():
     for bad in ("0", "-1", "fast"):
         with pytest.raises(argparse.ArgumentTypeError):
             pace(bad)
+
+
+def test_stored_fits_say_when_a_second_term_is_not_resolved():
+    from gui.runview import stored_summary
+
+    fits = [{"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1},
+            {"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1,
+             "not_resolved": "second term not resolved: BIC improvement -20 < 10"}]
+    meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": fits}}]}
+    lines = [line for line in stored_summary(meta).splitlines() if "fit:" in line]
+    assert len(lines) == 2 and "not resolved" not in lines[0]
+    assert lines[1].endswith("-- second term not resolved: BIC improvement -20 < 10")

@@ -7,8 +7,8 @@ import pytest
 
 from instrument import paper
 from instrument.compression import ramp_hold
-from instrument.contact import hertz_prefactor
-from instrument.hold_analysis import NoHold, analyse_hold
+from instrument.contact import hertz_prefactor, normal_force
+from instrument.hold_analysis import NoHold, analyse_hold, measured_overlap
 
 R, D, V = paper.R_COMPRESSION, paper.DEPTH_HOLD, paper.RAMP_SPEED
 HOLD = 600.0
@@ -107,3 +107,74 @@ def test_flat_force_fits_a_flat_modulus():
     fit = out.fits[0]
     assert fit.g_e + fit.relax[0].g == pytest.approx(5000.0, rel=1e-3)
     assert math.isfinite(fit.rmse)
+
+
+# -- the measured overlap: first touch refitted on the ramp (docs/decisions/0160) -----------------
+
+TOUCH = 6.2e-3  # m, stage position of first touch
+
+
+def approach_and_hold(compliance=0.0, seed=9, depth=D):
+    """A plate record as a ramp_hold step stores it: a tare clear of the sphere, a stage ramp
+    that starts 0.1 mm before touch and stops ``depth`` past it, the hold. With a load cell of
+    ``compliance`` (m/N) the overlap is the stage travel less its deflection."""
+    dt = 0.01
+    n_pre, n_ramp = round(0.1e-3 / V / dt), round(depth / V / dt)
+    t = dt * np.arange(-100 - n_pre, n_ramp + round(HOLD / dt) + 1)
+    travel = np.clip(V * t, -0.1e-3, depth)  # stage position less TOUCH
+    force = np.zeros_like(t)
+    for _ in range(4):  # the deflection feeds back on the overlap: a few fixed-point steps
+        overlap = np.maximum(travel - compliance * force, 0.0)
+        force = normal_force(t - t[0], overlap, paper.PLATES, R)
+    force = force + np.random.default_rng(seed).normal(0.0, NOISE, force.size)
+    return t, force, TOUCH + travel
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_first_touch_is_refitted_on_the_ramp(seed):
+    late = TOUCH + 3.4e-6  # the issue's contact search: 3.4 um late, so the plate went
+    t, force, position = approach_and_hold(seed=seed, depth=D + 3.4e-6)  # 3.4 um deeper
+    nominal = analyse_hold(t, force, position - late, R, D, terms=(1,))
+    measured = analyse_hold(t, force, position - late, R, D, terms=(1,), position=position)
+    assert measured.overlap is not None and measured.overlap.touch is not None
+    assert measured.overlap.recorded_touch == pytest.approx(late, abs=1e-9)
+    assert measured.overlap.first_touch == pytest.approx(TOUCH, abs=1e-6)
+    assert measured.overlap.held == pytest.approx(D + 3.4e-6, abs=1e-6)
+    assert nominal.fits[0].g_e > paper.PLATES.g_e * 1.003  # the nominal depth: too stiff
+    assert measured.fits[0].g_e == pytest.approx(paper.PLATES.g_e, rel=0.002)
+
+
+def test_the_load_cells_deflection_is_taken_off_the_plate_travel():
+    compliance = 1e-4  # m/N: 15 um at the hold's 0.15 N
+    t, force, position = approach_and_hold(compliance)
+    delta = position - TOUCH
+    ignored = analyse_hold(t, force, delta, R, D, terms=(1,), position=position)
+    held = analyse_hold(t, force, delta, R, D, terms=(1,), position=position,
+                        compliance=compliance)
+    t0, force0, position0 = approach_and_hold(0.0)  # the same noise on a stiff load cell
+    stiff = analyse_hold(t0, force0, position0 - TOUCH, R, D, terms=(1,), position=position0)
+    assert held.overlap is not None and held.overlap.compliance == compliance
+    assert held.overlap.first_touch == pytest.approx(TOUCH, abs=1e-6)
+    assert held.overlap.held == pytest.approx(D - compliance * force[-1], abs=1e-6)
+    assert held.fits[0].g_e == pytest.approx(stiff.fits[0].g_e, rel=5e-4)
+    assert ignored.fits[0].g_e < stiff.fits[0].g_e * 0.995  # travel overstates the overlap
+
+
+def test_without_a_ramp_to_fit_the_recorded_touch_is_kept(record):
+    _, t, force, delta = record  # the model's record starts at touch: no baseline before it
+    out = analyse_hold(t, force, delta, R, D, terms=(1,), position=TOUCH + delta)
+    assert out.overlap is not None
+    assert out.overlap.first_touch == pytest.approx(TOUCH, abs=2e-6)
+
+
+def test_measured_overlap_without_a_ramp_or_with_gaps_keeps_going():
+    _, force, position = approach_and_hold()
+    delta = position - TOUCH
+    none, overlap = measured_overlap(position, force, delta, 0)
+    assert none.touch is None and none.why == "no ramp before the hold"
+    assert none.first_touch == pytest.approx(TOUCH) and overlap == pytest.approx(delta)
+    start = int(np.argmax(delta >= D - 1e-12))
+    gappy = force.copy()
+    gappy[start - 500:start - 490] = np.nan  # an over-range burst on the ramp
+    found, _ = measured_overlap(position, gappy, delta, start)
+    assert found.touch is not None and found.first_touch == pytest.approx(TOUCH, abs=1e-6)

@@ -54,6 +54,9 @@ def test_from_table_accepts_units() -> None:
     assert chain.offset == pytest.approx(0.012)
     assert chain.bandwidth == pytest.approx(1000.0)
     assert chain.gain == 500.0
+    assert chain.compliance == 0.0  # stiff unless the rig file says otherwise
+    soft = LoadCellChain.from_table({"compliance": "20 um/N"}, "rig.toml")
+    assert soft.compliance == pytest.approx(2e-5)
 
 
 @pytest.mark.parametrize(
@@ -66,6 +69,8 @@ def test_from_table_accepts_units() -> None:
         ({"gain": True}, "[force.chain] gain", "number"),
         ({"gain": [1]}, "[force.chain] gain", "number"),
         ({"sensitivity": 4}, "[force.chain] sensitivity", "unknown field"),
+        ({"compliance": "-1 um/N"}, "[force.chain] compliance", "[0, 10000] um/N"),
+        ({"compliance": "3 mm"}, "[force.chain] compliance", "dimension"),
     ],
 )
 def test_from_table_names_field_value_and_range(

@@ -11,15 +11,18 @@ import math
 import numpy as np
 import pytest
 
+from instrument import paper
 from instrument.contact import Material, NormalContact, effective_radius
 from instrument.errors import ConfigError
 from instrument.shear_analysis import (
     RecordedPass,
     analyse_ladder,
     analyse_pass,
+    chord,
     pass_forces,
     split_passes,
     value_at,
+    with_chords,
 )
 from instrument.sliding import resolve_forces
 
@@ -186,3 +189,17 @@ def test_value_at_is_exact_on_a_parabola_either_direction():
     y = 3.0 + 2e3 * x - 5e6 * x**2
     assert value_at(x, y, 1e-4) == pytest.approx(3.0 + 0.2 - 0.05, rel=1e-9)
     assert value_at(x[::-1], y[::-1], 1e-4) == pytest.approx(3.0 + 0.2 - 0.05, rel=1e-9)
+
+
+def test_the_chord_is_the_geometric_contact_length_at_the_overlap():
+    r1, r2 = paper.R1_SHEAR, paper.R2_SHEAR
+    s = r1 + r2
+    for overlap in (0.38e-3, 0.78e-3):
+        assert chord(r1, r2, overlap) == pytest.approx(
+            2 * math.sqrt(s**2 - (s - overlap) ** 2), rel=1e-12)
+    assert math.isnan(chord(r1, r2, 0.0)) and math.isnan(chord(r1, r2, 2 * s))
+    rows = with_chords([{"overlap_m": 0.78e-3, "l_g_m": 0.0108},
+                        {"overlap_m": 0.78e-3, "l_g_m": math.nan}], r1, r2)
+    c = chord(r1, r2, 0.78e-3)
+    assert rows[0]["l_g_chord_m"] == c and rows[0]["l_g_over_chord"] == pytest.approx(0.0108 / c)
+    assert math.isnan(rows[1]["l_g_over_chord"])
