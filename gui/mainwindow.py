@@ -45,8 +45,10 @@ from protocols.events import (
     StepFinished,
     StepStarted,
 )
+from protocols.guard import Guarded
 from protocols.rig import Rig
 from protocols.rigfile import RigSpec
+from protocols.safestop import SafeState
 
 #: The pace control of simulated time.
 PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100.0),
@@ -165,6 +167,10 @@ class MainWindow(QMainWindow):
         s.run_started.connect(self._on_run_started)
         s.run_finished.connect(self._on_run_finished)
         s.run_event.connect(self._on_event)
+        s.motion_ended.connect(self._on_motion_ended)
+        s.stuck.connect(lambda text: self.log.add(text, "error"))
+        s.emergency_ended.connect(self._on_emergency_ended)
+        self.banner.bind(s, self.log.add)
         self.instruments.connect_clicked.connect(self.connect_rig)
         self.instruments.disconnect_clicked.connect(self.disconnect_rig)
         self.manual.command.connect(self._on_manual)
@@ -229,6 +235,8 @@ class MainWindow(QMainWindow):
         self.session.connect_rig()
 
     def disconnect_rig(self) -> None:
+        if not self.ask_if_loaded("Disconnect"):
+            return
         self.instruments.set_state("disconnecting…")
         self.instruments.set_connected(True, busy=True)
         self.session.disconnect_rig()
@@ -258,12 +266,13 @@ class MainWindow(QMainWindow):
     def _on_connect_failed(self, message: str) -> None:
         self.instruments.set_state("connection failed")
         self.instruments.set_connected(False)
+        self.statusBar().showMessage("connection failed: not connected")
         self.log.add(f"connection failed: {message}", "error")
         self.message("Connection failed", message)
 
     def _on_readings(self, values: dict[str, float]) -> None:
         self.instruments.show_readings(values)
-        self.banner.live(values)
+        self.manual.show_readings(values)
         self._last_read_error = ""
 
     def _on_readings_failed(self, message: str) -> None:
@@ -281,6 +290,32 @@ class MainWindow(QMainWindow):
     def _on_manual(self, what: str, command: Command) -> None:
         if self.session.command(what, command):
             self.log.add(what)
+
+    def _on_motion_ended(self, result: Guarded) -> None:
+        if result.outcome == "tripped":
+            self.log.add(f"{result.what}: INTERLOCK {result.reason}; motion stopped", "error")
+            self.message("Interlock tripped", f"{result.what}: {result.reason}\n\nMotion was "
+                         "stopped. Unload the sample, then Acknowledge on the banner.")
+        elif result.outcome == "stopped":
+            self.log.add(f"{result.what} stopped ({result.reason})")
+
+    def _on_emergency_ended(self, safe: SafeState) -> None:
+        self.message("The run was stuck: stopped from outside it",
+                     f"{safe.reason}\n\n{safe.line()}\n\nThe run is marked aborted and its "
+                     "data kept. The rig does not answer: close gelrig and check the "
+                     "instruments before the next run.")
+
+    def ask_if_loaded(self, action: str) -> bool:
+        """Before a run or a disconnect: True to go on; a loaded sample asks first."""
+        if not self.session.loaded:
+            return True
+        answer = QMessageBox.question(
+            self, "The sample is loaded",
+            f"The sample is loaded ({self.session.loaded}). {action} all the same?\n"
+            "(Unload to the safe position is on the interlock banner.)",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
 
     def _on_command_failed(self, what: str, message: str) -> None:
         self.log.add(f"{what} failed: {message}; stopping all motion", "error")
@@ -322,7 +357,7 @@ class MainWindow(QMainWindow):
 
     def run_protocol(self) -> None:
         spec = self.protocol.spec
-        if spec is None or self.protocol.why_not:
+        if spec is None or self.protocol.why_not or not self.ask_if_loaded("Start the run"):
             return
         try:
             path = self.session.start_run(spec)
@@ -333,6 +368,18 @@ class MainWindow(QMainWindow):
         self.log.add(f"run of {spec.name!r} started; recording to {path}")
 
     def pause(self) -> None:
+        """Pause at the next checkpoint; during a hold, offer to end it or abort instead."""
+        if self.session.holding:
+            choice = self.protocol.ask_hold()
+            if choice == "end":
+                if self.session.end_hold():
+                    self.protocol.hold_ending()
+                    self.log.add("ending the hold now (its data is kept; the run goes on)")
+                else:
+                    self.log.add("the hold had already ended")
+            elif choice == "abort":
+                self.abort()
+            return
         self.session.pause()
         self.protocol.request_pause()
         self.log.add("pause requested (takes effect at the next checkpoint)")
@@ -349,7 +396,6 @@ class MainWindow(QMainWindow):
     def _on_run_started(self, path: Path) -> None:
         self._step_names.clear()
         self.plots.clear()
-        self.banner.armed()
         self.manual.set_enabled(False)
         self.instruments.set_connected(True, busy=True)
         self.protocol.set_state(RunState.RUNNING)
@@ -358,7 +404,6 @@ class MainWindow(QMainWindow):
     def _on_run_finished(self, state: RunState, reason: str) -> None:
         self.plots.refresh(self.session.data)
         self.protocol.set_state(state, reason)
-        self.banner.disarmed()
         connected = self.session.rig is not None
         self.manual.set_enabled(connected)
         self.instruments.set_connected(connected)
@@ -378,11 +423,9 @@ class MainWindow(QMainWindow):
             self.protocol.set_state(event.new, event.reason)
             self.log.add(f"{event.new.value}" + (f": {event.reason}" if event.reason else ""))
         elif isinstance(event, InterlockTrip):
-            self.banner.trip(f"interlock {event.interlock}: {event.message}")
             self.log.add(f"INTERLOCK {event.message}", "error")
             self._trouble = ("Interlock tripped", event.message)
         elif isinstance(event, Fault):
-            self.banner.trip(f"fault ({event.kind}): {event.message}")
             self.log.add(f"FAULT {event.kind}: {event.message}", "error")
             self._trouble = ("Fault: the run stopped", f"{event.kind}: {event.message}")
         elif isinstance(event, SafeStopped):  # the same one line as the CLI's
@@ -438,7 +481,7 @@ class MainWindow(QMainWindow):
                     event.ignore()
                     return
                 self.close_after_run = True
-                self.session.abort("the window was closed during the run")
+                self.session.close_requested()
                 self.log.add("aborting the run before closing", "warning")
             event.ignore()
             return

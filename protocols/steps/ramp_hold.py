@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -22,6 +23,8 @@ from protocols.steps.base import (
     StepResult,
 )
 from protocols.steps.compression_search import SearchResult
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -69,6 +72,8 @@ class RampHoldResult(StepResult):
     speed_m_s: float
     samples: int
     fits: list[dict[str, Any]] = field(default_factory=list)
+    #: lab seconds the hold lasted (less than asked when a person ended it early)
+    held_s: float | None = None
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
@@ -150,7 +155,10 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             elapsed = ctx.clock.now() - t_start
             ctx.progress(elapsed / (ramp_time + p.hold), elapsed,
                          ramp_time + p.hold - elapsed, "ramp")
-        rec.dwell(p.hold, progress=True, label="hold")
+        held = rec.dwell(p.hold, progress=True, label="hold", endable=True)
+        if held < p.hold - 1.0 / p.rate:
+            log.warning("hold ended early on request after %.1f s of %g s; its data is kept",
+                        held, p.hold)
         cols = rec.columns()
         stage.set_velocity(limits.fast_speed, limits.acceleration)
         stage.move_to(max(touch - p.retract, 0.0), wait=False)
@@ -164,4 +172,4 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
                 fits.append(fit.as_dict())
             except GelrigError as exc:
                 fits.append({"error": str(exc)})
-        return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits)
+        return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits, held)
