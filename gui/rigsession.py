@@ -257,6 +257,8 @@ class RigSession(QObject):
         if not self.alarm:
             return ""
         rig = self.rig
+        if self._motions:
+            return "a manual motion is still going: wait for it to end"
         if rig is not None:
             for interlock in rig.interlocks():
                 value = self.values.get(interlock.column)

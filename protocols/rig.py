@@ -6,6 +6,7 @@ Built by the rig factory (gelrig.factory) from a rig file; a test may build one 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import ClassVar, TypeVar
@@ -191,12 +192,16 @@ class CompressionRig:
             return f"plate {(where - self.first_touch) * 1e3:.3f} mm past first touch"
         return None
 
-    def unload(self, budget: float = 15.0) -> SafeState:
-        """Stop and retract the plate to the rig's safe position (``retract_on_fault`` back
-        from first touch, :data:`UNLOAD_DEFAULT` if that is 0); returns what was verified."""
+    def unload(self, budget: float = 30.0) -> SafeState:
+        """Stop and retract the plate to the rig's safe position: ``retract_on_fault`` back
+        from first touch (:data:`UNLOAD_DEFAULT` if that is 0), or to the end of travel away
+        from the sphere when first touch is not known; returns what was verified."""
         limits = self.limits
-        axis = stop_stage(self.stage, self.clock, limits.retract_on_fault or UNLOAD_DEFAULT,
-                          self.first_touch, limits.fast_speed, limits.acceleration, budget)
+        retract = limits.retract_on_fault or UNLOAD_DEFAULT
+        if self.first_touch is None:
+            retract = math.inf  # where the sphere is is not known: all the way back
+        axis = stop_stage(self.stage, self.clock, retract, self.first_touch, limits.fast_speed,
+                          limits.acceleration, budget)
         return SafeState("unload the sample", [axis])
 
     def tare(self, duration: float, monitor_rate: float = 100.0) -> float:
