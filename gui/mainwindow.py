@@ -168,7 +168,7 @@ class MainWindow(QMainWindow):
         s.run_finished.connect(self._on_run_finished)
         s.run_event.connect(self._on_event)
         s.motion_ended.connect(self._on_motion_ended)
-        s.stuck.connect(lambda text: self.log.add(text, "error"))
+        s.stuck.connect(self._on_stuck)
         s.emergency_ended.connect(self._on_emergency_ended)
         self.banner.bind(s, self.log.add)
         self.instruments.connect_clicked.connect(self.connect_rig)
@@ -207,6 +207,7 @@ class MainWindow(QMainWindow):
         self.instruments.set_spec(spec)
         self.instruments.set_state("connecting…")
         self.instruments.set_connected(False, busy=True)
+        self.statusBar().showMessage("connecting…")
         self.banner.set_limits(spec.limits)
         self.plot_stack.setCurrentWidget(self.shear_plots if spec.kind == "shear"
                                          else self.compression_plots)
@@ -298,6 +299,11 @@ class MainWindow(QMainWindow):
                          "stopped. Unload the sample, then Acknowledge on the banner.")
         elif result.outcome == "stopped":
             self.log.add(f"{result.what} stopped ({result.reason})")
+
+    def _on_stuck(self, text: str) -> None:
+        self.log.add(text, "error")
+        self.protocol.status.setText(text)
+        self.statusBar().showMessage("the run does not answer: press STOP again")
 
     def _on_emergency_ended(self, safe: SafeState) -> None:
         self.message("The run was stuck: stopped from outside it",

@@ -507,7 +507,7 @@ class RigSession(QObject):
             self.worker.submit(rig.close)
         elif rig is not None:  # the rig thread is stuck: close from here, bounded
             try:
-                bounded(rig.close, 10.0, "closing the rig")
+                bounded(rig.close, 3.0, "closing the rig")
             except Exception as exc:
                 log.error("closing the rig: %s", exc)
             timeout = min(timeout, 1.0)

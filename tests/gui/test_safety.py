@@ -33,8 +33,8 @@ def answer(monkeypatch, reply, asked=None, module=QMessageBox):
 def home(qtbot, window):
     window.manual.buttons["home"].click()
     qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
-    qtbot.waitUntil(lambda: window.instruments.values["motion"].text() == "at rest"
-                    if "motion" in window.instruments.values else True, timeout=15_000)
+    qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest"
+                    and not window.session.moving_by_hand, timeout=15_000)
 
 
 def move_to(window, mm, speed=0.5):
@@ -261,3 +261,25 @@ def test_stop_twice_ends_a_stuck_run_from_outside_with_a_verified_safe_stop(qtbo
     assert meta["status"] == "aborted" and meta["safe_state"]["verified"]
     assert "stuck" in meta["reason"]
     assert window.banner.state == "tripped"  # the alarm says so until acknowledged
+
+
+def test_a_manual_rotation_is_watched_with_live_values_and_stop_ends_it(qtbot, open_window):
+    window = open_window(10.0, rig="shear")
+    session, manual = window.session, window.manual
+    manual.buttons["zero_gap"].click()
+    qtbot.waitUntil(lambda: window.instruments.values["gap_referenced"].text() == "yes",
+                    timeout=15_000)
+    manual.entries["speed"].setValue(0.5)
+    manual.buttons["rotate"].click()
+    qtbot.waitUntil(lambda: session.moving_by_hand, timeout=5_000)
+    angle = window.instruments.values["angle_rad"].text()
+    qtbot.waitUntil(lambda: window.instruments.values["angle_rad"].text() != angle,
+                    timeout=10_000)  # live values while the rig thread watches the motion
+    assert session.moving_by_hand  # a rotation does not end by itself
+    ended = []
+    session.motion_ended.connect(ended.append)
+    window.stop_button.click()
+    qtbot.waitUntil(lambda: bool(ended), timeout=10_000)
+    assert ended[0].outcome == "stopped"
+    qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest",
+                    timeout=10_000)
