@@ -76,8 +76,8 @@ def guarded(rig: Rig, what: str, start: Callable[[], object], control: RunContro
             until_stopped: bool = True) -> Guarded:
     """Run ``start()`` (a non-blocking motion command) and watch it under the rig's
     interlocks until it ends, a Stop (``control.abort``) or a trip; motion is stopped on the
-    way out of a stop or a trip. ``toward``: the move loads the sample (a compression move
-    away from the sphere only unloads, so the force limit does not refuse it: see ADR 0170).
+    way out of a stop or a trip. ``toward``: the move loads the sample (a move away from it,
+    the plate back or the arm up, only unloads, so the limits do not refuse it: ADR 0170).
     ``until_stopped`` False: the motion does not end by itself (a rotation); watch until
     stopped. Errors of the instruments propagate (motion stopped first)."""
     bus = EventBus()
@@ -87,7 +87,7 @@ def guarded(rig: Rig, what: str, start: Callable[[], object], control: RunContro
         if isinstance(rig, CompressionRig):
             _watch_stage(StepContext(rig, bus, control, -1), rig, start, toward)
         else:
-            _watch_arm(StepContext(rig, bus, control, -1), rig, start, until_stopped)
+            _watch_arm(StepContext(rig, bus, control, -1), rig, start, toward, until_stopped)
     except InterlockTripped as exc:
         rig.stop_all()  # the context stopped it already: once more does no harm
         return Guarded(what, "tripped", str(exc), latest.trip)
@@ -120,10 +120,10 @@ def _watch_stage(ctx: StepContext[CompressionRig], rig: CompressionRig,
 
 
 def _watch_arm(ctx: StepContext[ShearRig], rig: ShearRig, start: Callable[[], object],
-               until_stopped: bool) -> None:
+               toward: bool, until_stopped: bool) -> None:
     from protocols.steps.arm import ArmRecorder
 
-    ctx.interlocks = rig.interlocks()
+    ctx.interlocks = rig.interlocks() if toward else ()
     rec = ArmRecorder(ctx, ARM_INTERVAL, read_period=0.1)
     try:
         start()

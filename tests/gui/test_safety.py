@@ -283,3 +283,20 @@ def test_a_manual_rotation_is_watched_with_live_values_and_stop_ends_it(qtbot, o
     assert ended[0].outcome == "stopped"
     qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest",
                     timeout=10_000)
+
+
+def test_closing_during_a_stuck_run_ends_it_from_outside_and_closes(qtbot, fake_window,
+                                                                    monkeypatch):
+    window = fake_window
+    _rig, stage, force = window.fakes
+    window.protocol.set_table(short_compression(hold="3000 s"), "<test>")
+    window.protocol.run_button.click()
+    qtbot.waitUntil(lambda: window.session.data.samples() > 0, timeout=20_000)
+    force.faults.freeze()
+    qtbot.waitUntil(force.faults.blocked.is_set, timeout=10_000)
+    answer(monkeypatch, QMessageBox.StandardButton.Yes)
+    window.close()  # asks, aborts; the run does not answer; closing ends it from outside
+    qtbot.waitUntil(lambda: not window.isVisible(), timeout=30_000)
+    meta = json.loads((window.session.run_path / "run.json").read_text())
+    assert meta["status"] == "aborted" and meta["safe_state"]["verified"]
+    assert not stage.is_moving()
