@@ -306,6 +306,7 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage("the run does not answer: press STOP again")
 
     def _on_emergency_ended(self, safe: SafeState) -> None:
+        self.manual.set_enabled(False)  # the rig thread is stuck: nothing would be sent
         self.message("The run was stuck: stopped from outside it",
                      f"{safe.reason}\n\n{safe.line()}\n\nThe run is marked aborted and its "
                      "data kept. The rig does not answer: close gelrig and check the "

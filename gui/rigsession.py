@@ -202,12 +202,14 @@ class RigSession(QObject):
 
         def done(result: Guarded) -> None:
             self._motion_over(control)
+            self.values = {}  # what the motion saw is not a reading at rest: read again
             if result.outcome == "tripped":
                 self._set_alarm(result.reason)
             self.motion_ended.emit(result)
 
         def failed(exc: BaseException) -> None:
             self._motion_over(control)
+            self.values = {}
             self._failed(what, exc)
 
         return self.worker.submit(task, done=done, failed=failed)
@@ -257,6 +259,8 @@ class RigSession(QObject):
         if not self.alarm:
             return ""
         rig = self.rig
+        if self.wedged:
+            return "the rig does not answer: close gelrig and check the instruments"
         if self._motions:
             return "a manual motion is still going: wait for it to end"
         if rig is not None:
@@ -358,6 +362,7 @@ class RigSession(QObject):
         self.control, self.data, self._bridge, self.run_path = control, data, bridge, run.path
         self._recorded, self._run_dir, self._stop_presses = recorded, run, 0
         self._emergency, self._stuck_said = [], False
+        self.values, self.loaded = {}, ""
         self.state = RunState.RUNNING
 
         def task() -> RunState:
@@ -476,8 +481,9 @@ class RigSession(QObject):
         self.control, self._bridge = None, None
         self.state = RunState.ABORTED
         self._set_alarm("the run was stuck and was ended from outside it")
-        self.emergency_ended.emit(safe)
+        self.values = {}
         self.run_finished.emit(RunState.ABORTED, f"{safe.reason}; {safe.line()}")
+        self.emergency_ended.emit(safe)
 
     def _run_done(self, state: RunState, reason: str) -> None:
         self._recorded = None
@@ -488,6 +494,7 @@ class RigSession(QObject):
                 self._monitor.start()
             return
         self.control = None
+        self.values = {}  # re-arming waits for a reading at rest
         self._bridge = None  # every event it carried was delivered before this
         self.state = state
         if self.rig is not None:
