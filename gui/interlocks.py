@@ -41,6 +41,8 @@ class InterlockBanner(QFrame):
         row = QHBoxLayout()
         self.label = QLabel()
         self.label.setWordWrap(True)
+        # two lines always fit (the splitter may not squeeze the state out of sight)
+        self.label.setMinimumHeight(2 * self.label.fontMetrics().lineSpacing() + 14)
         self.ack_button = QPushButton("Acknowledge")
         self.ack_button.setToolTip("re-arm the interlocks (once the condition has cleared)")
         row.addWidget(self.label, 1)
@@ -172,9 +174,8 @@ class InterlockBanner(QFrame):
         self.ack_button.setVisible(self.state == "tripped")
         if self.state == "tripped":
             self.label.setStyleSheet(_TRIPPED)
-            self.label.setText(f"TRIPPED: {self.message}. Motion was stopped{now}. "
-                               f"Limits: {self._limits}. Moves toward the sample are refused "
-                               f"until acknowledged{note}")
+            self.label.setText(f"TRIPPED: {self.message}{now}. Motion was stopped; moves "
+                               f"toward the sample are refused until acknowledged{note}")
         elif self.state == "off":
             self.label.setStyleSheet(_OFF)
             self.label.setText(f"Interlocks NOT MONITORING: {self.why_off}. "
