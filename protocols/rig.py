@@ -167,10 +167,10 @@ class CompressionRig:
                    by: float | None = None) -> None:
         """Move the plate to ``target`` or ``by`` a distance (m) at ``speed`` (m/s); refused
         (:class:`NotHomed`) before the stage is homed."""
+        self.stage.set_velocity(speed, self.limits.acceleration)  # the caps refuse first
         if not self.stage.status().homed:
             raise NotHomed("the stage is not homed, so its positions mean nothing yet; "
                            "nothing moved")
-        self.stage.set_velocity(speed, self.limits.acceleration)
         if target is not None:
             self.stage.move_to(target, wait=False)
         elif by is not None:
