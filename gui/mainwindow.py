@@ -295,6 +295,8 @@ class MainWindow(QMainWindow):
     def _on_motion_ended(self, result: Guarded) -> None:
         if result.outcome == "tripped":
             self.log.add(f"{result.what}: TRIPPED {result.reason}; motion stopped", "error")
+            self.statusBar().showMessage("interlock tripped: motion stopped; unload, then "
+                                         "Acknowledge on the banner")
             self.message("Interlock tripped", f"{result.what}: {result.reason}\n\nMotion was "
                          "stopped. Unload the sample, then Acknowledge on the banner.")
         elif result.outcome == "stopped":
