@@ -170,6 +170,6 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
                 fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, depth,
                                terms=terms, delta=cols["delta_m"])
                 fits.append(fit.as_dict())
-            except GelrigError as exc:
+            except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
                 fits.append({"error": str(exc)})
         return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits, held)

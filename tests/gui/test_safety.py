@@ -16,7 +16,13 @@ from gui.messages import REPLIES
 from protocols.events import RunState
 from protocols.rigfile import default_rig
 from tests.doubles import compression_rig
-from tests.gui.test_app import open_window, short_compression, stage_sim, wait_finished
+from tests.gui.test_app import (
+    open_window,
+    samples_in,
+    short_compression,
+    stage_sim,
+    wait_finished,
+)
 
 __all__ = ["open_window"]  # the fixture, shared with test_app
 
@@ -162,10 +168,11 @@ def test_the_banner_does_not_monitor_when_disconnected_or_never_connected(qtbot,
 def test_pause_during_a_hold_offers_to_end_it_and_the_run_goes_on(qtbot, open_window):
     window = open_window(100.0)
     panel = window.protocol
-    panel.set_table(short_compression(hold="3000 s"), "<test>")
+    panel.set_table(short_compression(hold="3000 s", confirm=0), "<test>")
     panel.run_button.click()
     qtbot.waitUntil(lambda: window.session.holding, timeout=60_000)
     assert not panel.resume_button.isEnabled()  # not paused: nothing to resume
+    qtbot.waitUntil(lambda: samples_in(window, 1) > 20_000, timeout=60_000)  # 1 kHz
     offered = []
     panel.ask_hold = lambda: offered.append(True) or "end"
     panel.pause_button.click()
@@ -182,7 +189,7 @@ def test_pause_during_a_hold_offers_to_end_it_and_the_run_goes_on(qtbot, open_wi
 def test_pause_during_a_hold_can_abort(qtbot, open_window):
     window = open_window(100.0)
     panel = window.protocol
-    panel.set_table(short_compression(hold="3000 s"), "<test>")
+    panel.set_table(short_compression(hold="3000 s", confirm=0), "<test>")
     panel.run_button.click()
     qtbot.waitUntil(lambda: window.session.holding, timeout=60_000)
     panel.ask_hold = lambda: "abort"
