@@ -50,8 +50,10 @@ from protocols.events import (
     StepFinished,
     StepStarted,
 )
+from protocols.guard import Guarded
 from protocols.rig import Rig
 from protocols.rigfile import RigSpec
+from protocols.safestop import SafeState
 
 #: The pace control of simulated time.
 PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100.0),
@@ -220,6 +222,10 @@ class MainWindow(QMainWindow):
         s.run_started.connect(self._on_run_started)
         s.run_finished.connect(self._on_run_finished)
         s.run_event.connect(self._on_event)
+        s.motion_ended.connect(self._on_motion_ended)
+        s.stuck.connect(self._on_stuck)
+        s.emergency_ended.connect(self._on_emergency_ended)
+        self.banner.bind(s, self.log.add)
         self.instruments.connect_clicked.connect(self.connect_rig)
         self.instruments.disconnect_clicked.connect(self.disconnect_rig)
         self.manual.command.connect(self._on_manual)
@@ -257,6 +263,7 @@ class MainWindow(QMainWindow):
         self.instruments.set_spec(spec)
         self.instruments.set_state("connecting…")
         self.instruments.set_connected(False, busy=True)
+        self.statusBar().showMessage("connecting…")
         self.banner.set_limits(spec.limits)
         self.plot_stack.setCurrentWidget(self.shear_plots if spec.kind == "shear"
                                          else self.compression_plots)
@@ -287,6 +294,8 @@ class MainWindow(QMainWindow):
         self.session.connect_rig()
 
     def disconnect_rig(self) -> None:
+        if not self.ask_if_loaded("Disconnect"):
+            return
         self.instruments.set_state("disconnecting…")
         self.instruments.set_connected(True, busy=True)
         self.session.disconnect_rig()
@@ -317,14 +326,15 @@ class MainWindow(QMainWindow):
     def _on_connect_failed(self, message: str) -> None:
         self.instruments.set_state("connection failed")
         self.instruments.set_connected(False)
+        self.statusBar().showMessage("connection failed: not connected")
         self.log.add(f"connection failed: {message}", "error")
         self.message("Connection failed", message)
 
     def _on_readings(self, values: dict[str, float]) -> None:
         self.instruments.show_readings(values)
-        self.banner.live(values)
         self.header.show_live(values)
         self.idle_plots.add(values)
+        self.manual.show_readings(values)
         self._last_read_error = ""
 
     def _on_readings_failed(self, message: str) -> None:
@@ -343,6 +353,40 @@ class MainWindow(QMainWindow):
         if self.session.command(what, command):
             self.log.add(what)
             self.plot_tabs.setCurrentWidget(self.idle_plots)
+
+    def _on_motion_ended(self, result: Guarded) -> None:
+        if result.outcome == "tripped":
+            self.log.add(f"{result.what}: TRIPPED {result.reason}; motion stopped", "error")
+            self.statusBar().showMessage("interlock tripped: motion stopped; unload, then "
+                                         "Acknowledge on the banner")
+            self.message("Interlock tripped", f"{result.what}: {result.reason}\n\nMotion was "
+                         "stopped. Unload the sample, then Acknowledge on the banner.")
+        elif result.outcome == "stopped":
+            self.log.add(f"{result.what} stopped ({result.reason})")
+
+    def _on_stuck(self, text: str) -> None:
+        self.log.add(text, "error")
+        self.protocol.status.setText(text)
+        self.statusBar().showMessage("the run does not answer: press STOP again")
+
+    def _on_emergency_ended(self, safe: SafeState) -> None:
+        self.manual.set_enabled(False)  # the rig thread is stuck: nothing would be sent
+        self.message("The run was stuck: stopped from outside it",
+                     f"{safe.reason}\n\n{safe.line()}\n\nThe run is marked aborted and its "
+                     "data kept. The rig does not answer: close gelrig and check the "
+                     "instruments before the next run.")
+
+    def ask_if_loaded(self, action: str) -> bool:
+        """Before a run or a disconnect: True to go on; a loaded sample asks first."""
+        if not self.session.loaded:
+            return True
+        answer = QMessageBox.question(
+            self, "The sample is loaded",
+            f"The sample is loaded ({self.session.loaded}). {action} all the same?\n"
+            "(Unload to the safe position is on the interlock banner.)",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
 
     def _on_command_failed(self, what: str, message: str) -> None:
         self.log.add(f"{what} failed: {message}; stopping all motion", "error")
@@ -398,7 +442,7 @@ class MainWindow(QMainWindow):
 
     def run_protocol(self) -> None:
         spec = self.protocol.spec
-        if spec is None or self.protocol.why_not:
+        if spec is None or self.protocol.why_not or not self.ask_if_loaded("Start the run"):
             return
         try:
             path = self.session.start_run(spec)
@@ -409,6 +453,18 @@ class MainWindow(QMainWindow):
         self.log.add(f"run of {spec.name!r} started; recording to {path}")
 
     def pause(self) -> None:
+        """Pause at the next checkpoint; during a hold, offer to end it or abort instead."""
+        if self.session.holding:
+            choice = self.protocol.ask_hold()
+            if choice == "end":
+                if self.session.end_hold():
+                    self.protocol.hold_ending()
+                    self.log.add("ending the hold now (its data is kept; the run goes on)")
+                else:
+                    self.log.add("the hold had already ended")
+            elif choice == "abort":
+                self.abort()
+            return
         self.session.pause()
         self.protocol.request_pause()
         self.log.add("pause requested (takes effect at the next checkpoint)")
@@ -432,7 +488,6 @@ class MainWindow(QMainWindow):
         self.report_action.setEnabled(False)
         self.plot_tabs.setCurrentIndex(0)
         self.left_tabs.setCurrentIndex(0)
-        self.banner.armed()
         self.manual.set_enabled(False)
         self.instruments.set_connected(True, busy=True)
         self.protocol.set_state(RunState.RUNNING)
@@ -442,7 +497,6 @@ class MainWindow(QMainWindow):
         self.plots.refresh(self.session.data)
         release()  # what the runner and recorder held during the run
         self.protocol.set_state(state, reason)
-        self.banner.disarmed()
         connected = self.session.rig is not None
         self.manual.set_enabled(connected)
         self.instruments.set_connected(connected)
@@ -467,11 +521,9 @@ class MainWindow(QMainWindow):
             self.protocol.set_state(event.new, event.reason)
             self.log.add(f"{event.new.value}" + (f": {event.reason}" if event.reason else ""))
         elif isinstance(event, InterlockTrip):
-            self.banner.trip(f"interlock {event.interlock}: {event.message}")
             self.log.add(f"INTERLOCK {event.message}", "error")
             self._trouble = ("Interlock tripped", event.message)
         elif isinstance(event, Fault):
-            self.banner.trip(f"fault ({event.kind}): {event.message}")
             self.log.add(f"FAULT {event.kind}: {event.message}", "error")
             self._trouble = ("Fault: the run stopped", f"{event.kind}: {event.message}")
         elif isinstance(event, SafeStopped):  # the same one line as the CLI's
@@ -624,7 +676,7 @@ class MainWindow(QMainWindow):
                     event.ignore()
                     return
                 self.close_after_run = True
-                self.session.abort("the window was closed during the run")
+                self.session.close_requested()
                 self.log.add("aborting the run before closing", "warning")
             event.ignore()
             return

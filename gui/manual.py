@@ -2,13 +2,15 @@
 rotation at a speed, hold (shear). Disabled while a protocol runs; the window's Stop button
 (always enabled) stops everything.
 
-Each button emits a command: a label and a function of the rig that the session runs on the
-rig thread. Entries are in lab units (mm, mm/s, s) and converted to SI here.
+Each button emits a command: a label and either a function of the rig or a
+:class:`~protocols.guard.Motion`, which the session runs on the rig thread under the
+interlocks (ADR 0170). Entries are in lab units (mm, mm/s, s) and converted to SI here. A
+stage move before homing asks to home first.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
@@ -16,14 +18,16 @@ from PySide6.QtWidgets import (
     QGridLayout,
     QGroupBox,
     QLabel,
+    QMessageBox,
     QPushButton,
     QVBoxLayout,
     QWidget,
 )
 
+from protocols.guard import Motion
 from protocols.rig import CompressionRig, Rig, ShearRig
 
-Command = Callable[[Rig], object]
+Command = Callable[[Rig], object] | Motion
 
 
 def _spin(value: float, lo: float, hi: float, unit: str, decimals: int = 3,
@@ -35,6 +39,11 @@ def _spin(value: float, lo: float, hi: float, unit: str, decimals: int = 3,
     box.setValue(value)
     box.setSuffix(f" {unit}")
     return box
+
+
+def _home_motion() -> Motion:
+    """Homing moves the plate away from the sphere (to position 0): it unloads."""
+    return Motion(lambda rig: _compression(rig).home(), lambda rig: False)
 
 
 def _compression(rig: Rig) -> CompressionRig:
@@ -61,11 +70,32 @@ class ManualPanel(QGroupBox):
         self.buttons: dict[str, QPushButton] = {}
         self.entries: dict[str, QDoubleSpinBox] = {}
         self.kind: str | None = None
+        #: from the readouts: whether the stage is homed (None: not known yet)
+        self.homed: bool | None = None
+
+    def show_readings(self, values: Mapping[str, float]) -> None:
+        """Follow the readouts (whether the stage is homed)."""
+        if "homed" in values:
+            self.homed = bool(values["homed"])
+
+    def home_first(self) -> bool:
+        """Before a stage move: True to go on. Not homed: ask to home first (a dialog)."""
+        if self.kind != "compression" or self.homed is not False:
+            return True
+        answer = QMessageBox.question(
+            self, "Home the stage first",
+            "The stage is not homed, so its positions mean nothing yet and a move could "
+            "press into the sample.\n\nHome it now? (Move again once it is homed.)",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.Yes)
+        if answer == QMessageBox.StandardButton.Yes:
+            self.command.emit("stage home", _home_motion())
+        return False
 
     def set_kind(self, kind: str | None) -> None:
         if kind == self.kind:
             return
-        self.kind = kind
+        self.kind, self.homed = kind, None
         if self.body is not None:
             self.body.deleteLater()
         self.buttons.clear()
@@ -79,9 +109,15 @@ class ManualPanel(QGroupBox):
         else:
             QVBoxLayout(self.body).addWidget(QLabel("connect a rig"))
 
-    def _button(self, key: str, text: str, what: str, make: Callable[[], Command]) -> QPushButton:
+    def _button(self, key: str, text: str, what: str, make: Callable[[], Command],
+                needs_home: bool = False) -> QPushButton:
         button = QPushButton(text)
-        button.clicked.connect(lambda: self.command.emit(what, make()))
+
+        def clicked() -> None:
+            if not needs_home or self.home_first():
+                self.command.emit(what, make())
+
+        button.clicked.connect(clicked)
         self.buttons[key] = button
         return button
 
@@ -95,30 +131,24 @@ class ManualPanel(QGroupBox):
 
         def move(relative: float | None) -> Command:
             speed = e["speed"].value() * 1e-3
-            target = e["target"].value() * 1e-3
-
-            def run(rig: Rig) -> None:
-                if relative is None:
-                    _compression(rig).move_plate(speed, target=target)
-                else:
-                    _compression(rig).move_plate(speed, by=relative)
-            return run
+            target = None if relative is not None else e["target"].value() * 1e-3
+            return Motion(lambda rig: _compression(rig).move_plate(speed, target, relative),
+                          lambda rig: _compression(rig).toward(target, relative))
 
         grid.addWidget(QLabel("<b>Stage</b>"), 0, 0)
-        grid.addWidget(self._button("home", "Home", "stage home",
-                                    lambda: lambda rig: _compression(rig).home()),
-                       0, 1)
+        grid.addWidget(self._button("home", "Home", "stage home", _home_motion), 0, 1)
         grid.addWidget(QLabel("speed"), 1, 0)
         grid.addWidget(e["speed"], 1, 1, 1, 2)
         grid.addWidget(QLabel("jog step"), 2, 0)
         grid.addWidget(e["step"], 2, 1, 1, 2)
         grid.addWidget(self._button("jog_minus", "Jog − (away)", "stage jog −",
-                                    lambda: move(-e["step"].value() * 1e-3)), 3, 1)
+                                    lambda: move(-e["step"].value() * 1e-3), True), 3, 1)
         grid.addWidget(self._button("jog_plus", "Jog + (toward sphere)", "stage jog +",
-                                    lambda: move(e["step"].value() * 1e-3)), 3, 2)
+                                    lambda: move(e["step"].value() * 1e-3), True), 3, 2)
         grid.addWidget(QLabel("move to"), 4, 0)
         grid.addWidget(e["target"], 4, 1)
-        grid.addWidget(self._button("move_to", "Move", "stage move to", lambda: move(None)), 4, 2)
+        grid.addWidget(self._button("move_to", "Move", "stage move to", lambda: move(None),
+                                    True), 4, 2)
         grid.addWidget(QLabel("<b>Load cell</b>"), 5, 0)
         grid.addWidget(e["tare"], 5, 1)
 
@@ -136,11 +166,12 @@ class ManualPanel(QGroupBox):
 
         def set_gap() -> Command:
             gap = e["gap"].value() * 1e-3
-            return lambda rig: _shear(rig).set_gap(gap)
+            return Motion(lambda rig: _shear(rig).set_gap(gap),
+                          lambda rig: gap < _shear(rig).rheometer.gap())
 
         def rotate() -> Command:
             speed = e["speed"].value() * 1e-3
-            return lambda rig: _shear(rig).rotate(speed)
+            return Motion(lambda rig: _shear(rig).rotate(speed), ends=False)
 
         grid.addWidget(QLabel("<b>Rheometer</b>"), 0, 0)
         grid.addWidget(self._button("zero_gap", "Reference gap", "rheometer gap reference",

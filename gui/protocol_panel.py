@@ -17,6 +17,7 @@ from PySide6.QtWidgets import (
     QGroupBox,
     QHBoxLayout,
     QLabel,
+    QMessageBox,
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
@@ -174,8 +175,29 @@ class ProtocolPanel(QGroupBox):
 
     def request_pause(self) -> None:
         self.pause_requested = True
-        self.status.setText("pause requested: the run pauses at the next checkpoint")
+        self.status.setText("pause requested: the run pauses at the next checkpoint (before "
+                            "the next step; nothing moves then)")
         self._update()
+
+    def ask_hold(self) -> str:
+        """Pause pressed during a hold: ``"end"`` (end the hold now), ``"abort"`` or ``""``.
+
+        A hold cannot pause without changing the physics (the sample relaxes under the held
+        strain whatever the software does), so the choice is to end it or abort."""
+        box = QMessageBox(QMessageBox.Icon.Question, "Pause during a hold",
+                          "The run is holding the sample at its strain. A hold cannot pause "
+                          "without changing the physics: the sample goes on relaxing.\n\n"
+                          "End the hold now: the hold's data is kept and the run goes on "
+                          "with its next phase.\nAbort: the run stops and the plate "
+                          "retracts.", QMessageBox.StandardButton.Cancel, self)
+        end = box.addButton("End the hold now", QMessageBox.ButtonRole.AcceptRole)
+        abort = box.addButton("Abort", QMessageBox.ButtonRole.DestructiveRole)
+        box.exec()
+        clicked = box.clickedButton()
+        return "end" if clicked is end else "abort" if clicked is abort else ""
+
+    def hold_ending(self) -> None:
+        self.status.setText("ending the hold now: its data is kept, the run goes on")
 
     def cancel_pause(self) -> None:
         self.pause_requested = False
@@ -198,7 +220,7 @@ class ProtocolPanel(QGroupBox):
             what += f" {step_name}"
         if progress.message:
             what += f": {progress.message}"
-        paused = "; pause requested" if self.pause_requested else ""
+        paused = "; pause requested (before the next step)" if self.pause_requested else ""
         self.status.setText(f"{what} — ETA {lab_time(left)} lab time{wall}{paused}")
 
     # ---- state ------------------------------------------------------------------------
@@ -222,7 +244,7 @@ class ProtocolPanel(QGroupBox):
         self.run_button.setEnabled(not self.why_not)
         self.run_button.setToolTip(self.why_not or "run this protocol on the connected rig")
         self.pause_button.setEnabled(self.state == RunState.RUNNING and not self.pause_requested)
-        self.resume_button.setEnabled(self.state == RunState.PAUSED or self.pause_requested)
+        self.resume_button.setEnabled(self.state == RunState.PAUSED)
         self.abort_button.setEnabled(self.active)
         self.open_button.setEnabled(not self.active)
         self.form.setEnabled(not self.active)

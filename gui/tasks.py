@@ -88,14 +88,22 @@ class RigThread(QObject):
                 if task.failed is None:
                     log.exception("rig task failed")
                 else:
-                    self._deliver.emit(task.failed, exc)
+                    self._send(task.failed, exc)
             else:
                 if task.done is not None:
-                    self._deliver.emit(task.done, result)
+                    self._send(task.done, result)
             finally:
                 del task  # keep no finished run (its data) alive while the thread waits
                 with self._cond:
                     self._busy = False
+
+    def _send(self, callback: Callable[[Any], None], value: Any) -> None:
+        """Hand a result to the GUI thread; dropped if the window is gone (a task stuck in
+        an instrument call that returns after the window closed, ADR 0170)."""
+        try:
+            self._deliver.emit(callback, value)
+        except RuntimeError:
+            log.warning("a rig task ended after the window closed; its result is dropped")
 
     def _on_deliver(self, callback: Callable[[Any], None], value: Any) -> None:
         callback(value)

@@ -14,7 +14,9 @@ class RunControl:
     """Pause/resume/abort requests, thread-safe.
 
     A pause takes effect at the next checkpoint (a point where nothing moves); an abort
-    takes effect at once, at the next sample block.
+    takes effect at once, at the next sample block. A hold (the sample held at a strain while
+    it relaxes) cannot pause without changing the physics, but it can be ended early: its
+    data is kept and the run goes on with the next phase (:meth:`end_hold`).
     """
 
     def __init__(self) -> None:
@@ -27,6 +29,8 @@ class RunControl:
         self.fault_kind = ""
         #: wall time (time.monotonic) of the first abort request, or None
         self.abort_time: float | None = None
+        self._holding = threading.Event()
+        self._end_hold = threading.Event()
 
     def pause(self) -> None:
         self._pause.set()
@@ -48,6 +52,32 @@ class RunControl:
         if not self._abort.is_set():
             self.fault_kind = kind
         self.abort(reason)
+
+    def end_hold(self) -> bool:
+        """End the hold in progress now (its data is kept; the run goes on); False if no hold
+        is in progress (it may just have ended)."""
+        if not self._holding.is_set():
+            return False
+        self._end_hold.set()
+        return True
+
+    @property
+    def holding(self) -> bool:
+        """A step is in a hold that :meth:`end_hold` can end."""
+        return self._holding.is_set()
+
+    @property
+    def hold_end_requested(self) -> bool:
+        return self._end_hold.is_set()
+
+    def enter_hold(self) -> None:
+        """A step begins a hold (an older end request does not carry over)."""
+        self._end_hold.clear()
+        self._holding.set()
+
+    def leave_hold(self) -> None:
+        self._holding.clear()
+        self._end_hold.clear()
 
     @property
     def pause_requested(self) -> bool:

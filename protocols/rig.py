@@ -6,14 +6,15 @@ Built by the rig factory (gelrig.factory) from a rig file; a test may build one 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import ClassVar, TypeVar
 
 import numpy as np
 
 from instrument.clock import Clock
-from instrument.errors import InstrumentError
+from instrument.errors import GelrigError, InstrumentError
 from instrument.fields import Config, Field, param
 from instrument.loadcell import ForceSensor
 from instrument.rheometer import Rheometer
@@ -23,6 +24,17 @@ from protocols.interlocks import Interlock
 from protocols.safestop import SafeState, stop_rheometer, stop_stage
 
 log = logging.getLogger(__name__)
+
+#: Force (N) above which a sample counts as loaded: the contact search's default threshold.
+LOADED_FORCE = 5e-3
+#: Torque (N*m) above which the shear sample counts as loaded: the shear search's default.
+LOADED_TORQUE = 0.2e-3
+#: How far an unload moves (m) when the rig file's retract or lift after a fault is 0.
+UNLOAD_DEFAULT = 2e-3
+
+
+class NotHomed(GelrigError):
+    """A stage move was asked for before homing: positions mean nothing yet; nothing moved."""
 
 
 @dataclass(frozen=True)
@@ -153,12 +165,44 @@ class CompressionRig:
 
     def move_plate(self, speed: float, target: float | None = None,
                    by: float | None = None) -> None:
-        """Move the plate to ``target`` or ``by`` a distance (m) at ``speed`` (m/s)."""
-        self.stage.set_velocity(speed, self.limits.acceleration)
+        """Move the plate to ``target`` or ``by`` a distance (m) at ``speed`` (m/s); refused
+        (:class:`NotHomed`) before the stage is homed."""
+        self.stage.set_velocity(speed, self.limits.acceleration)  # the caps refuse first
+        if not self.stage.status().homed:
+            raise NotHomed("the stage is not homed, so its positions mean nothing yet; "
+                           "nothing moved")
         if target is not None:
             self.stage.move_to(target, wait=False)
         elif by is not None:
             self.stage.move_by(by, wait=False)
+
+    def toward(self, target: float | None = None, by: float | None = None) -> bool:
+        """Whether a manual move loads the sample (toward the sphere: + direction)."""
+        if by is not None:
+            return by > 0
+        return target is not None and target > self.stage.position()
+
+    def load_state(self, values: Mapping[str, float]) -> str | None:
+        """Why the sample counts as loaded, from idle readings, or None: a force above
+        :data:`LOADED_FORCE` or the plate past first touch (when known)."""
+        force, where = values.get("force_N"), values.get("position_m")
+        if force is not None and force > LOADED_FORCE:
+            return f"{force * 1e3:.3g} mN on the sample"
+        if where is not None and self.first_touch is not None and where > self.first_touch:
+            return f"plate {(where - self.first_touch) * 1e3:.3f} mm past first touch"
+        return None
+
+    def unload(self, budget: float = 30.0) -> SafeState:
+        """Stop and retract the plate to the rig's safe position: ``retract_on_fault`` back
+        from first touch (:data:`UNLOAD_DEFAULT` if that is 0), or to the end of travel away
+        from the sphere when first touch is not known; returns what was verified."""
+        limits = self.limits
+        retract = limits.retract_on_fault or UNLOAD_DEFAULT
+        if self.first_touch is None:
+            retract = math.inf  # where the sphere is is not known: all the way back
+        axis = stop_stage(self.stage, self.clock, retract, self.first_touch, limits.fast_speed,
+                          limits.acceleration, budget)
+        return SafeState("unload the sample", [axis])
 
     def tare(self, duration: float, monitor_rate: float = 100.0) -> float:
         """Zero the force on ``duration`` s of samples; returns the removed offset (N)."""
@@ -232,6 +276,29 @@ class ShearRig:
         """Nothing streams while idle on this rig."""
 
     # manual commands: each returns at once
+    def load_state(self, values: Mapping[str, float]) -> str | None:
+        """Why the sample counts as loaded, from idle readings, or None: the gap below the
+        touch gap (when known), a torque above :data:`LOADED_TORQUE` or a normal force above
+        :data:`LOADED_FORCE`."""
+        gap = values.get("gap_m")
+        touch = self.rheometer.touch_gap if isinstance(self.rheometer, CappedRheometer) \
+            else None
+        if gap is not None and touch is not None and gap < touch:
+            return f"gap {(touch - gap) * 1e3:.3f} mm below the touch gap"
+        torque, normal = values.get("torque_Nm"), values.get("normal_force_N")
+        if torque is not None and abs(torque) > LOADED_TORQUE:
+            return f"torque {torque * 1e3:.3g} mN*m on the sample"
+        if normal is not None and abs(normal) > LOADED_FORCE:
+            return f"normal force {normal * 1e3:.3g} mN on the sample"
+        return None
+
+    def unload(self, budget: float = 15.0) -> SafeState:
+        """Stop the arm and lift it ``lift_on_fault`` (:data:`UNLOAD_DEFAULT` if that is 0);
+        returns what was verified."""
+        axis = stop_rheometer(self.rheometer, self.clock,
+                              self.limits.lift_on_fault or UNLOAD_DEFAULT, budget)
+        return SafeState("unload the sample", [axis])
+
     def zero_gap(self) -> None:
         self.rheometer.zero_gap()
 

@@ -174,22 +174,32 @@ class ForceRecorder:
             self.read()
 
     def dwell(self, duration: float, progress: bool = False, label: str = "",
-              block_time: float = 4.0) -> None:
+              block_time: float = 4.0, endable: bool = False) -> float:
         """Keep reading for ``duration`` seconds of clock time, in blocks of up to
-        ``block_time`` (nothing moves, so blocks can be long; they still shrink near a limit)."""
+        ``block_time`` (nothing moves, so blocks can be long; they still shrink near a limit).
+        ``endable``: a hold a person may end early (``RunControl.end_hold``: at the end of
+        the current block, its data kept). Returns the clock time it lasted."""
         clock = self.ctx.clock
+        control = self.ctx.control
         start = clock.now()
         end = start + duration
         next_report = start
         n_hold = max(1, round(self.rate * block_time))
-        while clock.now() < end:
-            remaining = max(1, math.ceil((end - clock.now()) * self.rate))
-            self.read(n_max=min(n_hold, remaining))
-            now = clock.now()
-            if progress and now >= next_report:
-                self.ctx.progress((now - start) / duration, now - start, end - now, label,
-                                  force_N=self._last_f)
-                next_report = now + duration / 200
+        if endable:
+            control.enter_hold()
+        try:
+            while clock.now() < end and not (endable and control.hold_end_requested):
+                remaining = max(1, math.ceil((end - clock.now()) * self.rate))
+                self.read(n_max=min(n_hold, remaining))
+                now = clock.now()
+                if progress and now >= next_report:
+                    self.ctx.progress((now - start) / duration, now - start, end - now, label,
+                                      force_N=self._last_f)
+                    next_report = now + duration / 200
+        finally:
+            if endable:
+                control.leave_hold()
+        return clock.now() - start
 
     def columns(self) -> dict[str, FloatArray]:
         """Everything kept so far, concatenated."""

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -24,6 +25,8 @@ from protocols.steps.base import (
     StepResult,
 )
 from protocols.steps.compression_search import SearchResult
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,8 @@ class RampHoldResult(StepResult):
     fits: list[dict[str, Any]] = field(default_factory=list)
     first_touch_ramp_m: float = float("nan")
     measured_depth_m: float = float("nan")
+    #: lab seconds the hold lasted (less than asked when a person ended it early)
+    held_s: float | None = None
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
@@ -155,7 +160,10 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             elapsed = ctx.clock.now() - t_start
             ctx.progress(elapsed / (ramp_time + p.hold), elapsed,
                          ramp_time + p.hold - elapsed, "ramp")
-        rec.dwell(p.hold, progress=True, label="hold")
+        held = rec.dwell(p.hold, progress=True, label="hold", endable=True)
+        if held < p.hold - 1.0 / p.rate:
+            log.warning("hold ended early on request after %.1f s of %g s; its data is kept",
+                        held, p.hold)
         cols = rec.columns()
         stage.set_velocity(limits.fast_speed, limits.acceleration)
         stage.move_to(max(touch - p.retract, 0.0), wait=False)
@@ -173,7 +181,7 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
                 fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
                                terms=terms, delta=cols["delta_m"])
                 fits.append(fit.as_dict())
-            except GelrigError as exc:
+            except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
                 fits.append({"error": str(exc)})
         return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits,
-                              measured.first_touch, measured.held)
+                              measured.first_touch, measured.held, held)

@@ -204,6 +204,8 @@ def test_a_finished_run_s_buffers_are_released_when_the_next_run_starts(qtbot, o
 def test_the_manual_tab_plots_force_and_position_live(qtbot, open_window):
     window = open_window(10.0)
     window.left_tabs.setCurrentIndex(1)
+    window.manual.buttons["home"].click()  # a move before homing asks to home first
+    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
     window.manual.entries["target"].setValue(1.0)
     window.manual.buttons["move_to"].click()
     assert window.plot_tabs.currentWidget() is window.idle_plots
