@@ -8,7 +8,10 @@ itself); anything not matching the expected shape raises :class:`FramingError`.
 
 from __future__ import annotations
 
+import re
+
 from drivers.mcr501.commands import (
+    BUSY,
     COMMANDS,
     ERROR,
     ERROR_CODES,
@@ -28,6 +31,10 @@ class InstrumentTrip(DeviceErrorReply):
 
 class UnknownCommand(DeviceErrorReply):
     """The instrument did not recognise a command of the table (confirm the table)."""
+
+
+class InstrumentBusy(DeviceErrorReply):
+    """Another client holds the instrument's line (error 20): nothing was done."""
 
 
 def encode(name: str, **values: object) -> str:
@@ -56,6 +63,8 @@ def _raise_error(line: str, expected: str) -> None:
         raise InstrumentTrip(message, code)
     if code == 10:
         raise UnknownCommand(message, code)
+    if code == BUSY:
+        raise InstrumentBusy(f"{message} ({ERROR_CODES[BUSY]})", code)
     raise DeviceErrorReply(message, code)
 
 
@@ -100,6 +109,38 @@ def decode_record_row(line: str) -> RecordRow:
         raise FramingError(f"MCR 501: malformed stream record {line!r}")
     t_s, angle_deg, torque_mnm, force_n, gap_mm = map(float, m.groups())
     return t_s, angle_deg, torque_mnm, force_n, gap_mm
+
+
+#: Any number of ``:MEAS`` records, each followed by a newline: one match validates a batch
+#: as the full-line regex validates each line (the field patterns have no groups).
+_RECORD_BLOCK = re.compile(
+    "(?:" + re.escape(RECORD.key) + r"\["
+    + ";".join(f.pattern for f in RECORD.shape if not isinstance(RECORD.shape, str))
+    + r"\]\n)*"
+)
+_RECORD_PREFIX = f"{RECORD.key}["
+
+
+def decode_record_rows(lines: list[str]) -> list[float]:
+    """The values of ``lines`` (``:MEAS`` records) in table order, flat (5 per record).
+
+    The batch form of :func:`decode_record_row`, with the same validation and errors: a batch
+    that does not match as a whole is decoded line by line to raise the first line's error.
+    """
+    if not lines:
+        return []
+    block = "\n".join(lines) + "\n"
+    if _RECORD_BLOCK.fullmatch(block) is not None:
+        values = block.replace(_RECORD_PREFIX, "").replace("]\n", ";").split(";")
+        values.pop()  # after the last record's separator
+        if len(values) == len(RECORD_FIELDS) * len(lines):
+            return list(map(float, values))
+    rows = [decode_record_row(line) for line in lines]  # raises for the first bad line
+    raise FramingError(f"MCR 501: {len(lines)} stream records hold line breaks: {rows[:1]!r}")
+
+
+#: The field names of a ``:MEAS`` record, in table order.
+RECORD_FIELDS = tuple(f.name for f in RECORD.shape if not isinstance(RECORD.shape, str))
 
 
 class RequestError(Exception):

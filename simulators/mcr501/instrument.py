@@ -223,8 +223,8 @@ class MCR501Simulator:
         # measured_force would one point at a time: one draw of 2n normals is the same stream.
         cfg = self.config
         z = self._stream_rng.standard_normal(2 * len(batch))
-        t, angle, torque, force, gap = (np.array(column) for column in zip(
-            *((s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch), strict=True))
+        t, angle, torque, force, gap = np.array(
+            [(s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch]).T.copy()
         torque += cfg.torque_noise * z[0::2]
         force += cfg.normal_force_noise * z[1::2]
         # np.rint rounds half to even, as round() does in _quantize; np.degrees is
