@@ -26,8 +26,9 @@ class Interlock:
         if values is None or len(values) == 0:
             return None
         v = np.abs(values) if self.absolute else np.asarray(values)
-        bad = np.flatnonzero(v > self.limit)
-        return int(bad[0]) if bad.size else None
+        beyond = v > self.limit
+        first = int(beyond.argmax())  # the first True, or 0 when there is none
+        return first if beyond[first] else None
 
     def headroom(self, value: float) -> float:
         """Distance of a value from the limit (negative when beyond)."""

@@ -143,6 +143,21 @@ def decode_record_rows(lines: list[str]) -> list[float]:
 RECORD_FIELDS = tuple(f.name for f in RECORD.shape if not isinstance(RECORD.shape, str))
 
 
+_STREAM_HEADER = COMMANDS["read_stream"]
+
+
+def decode_stream_header(line: str) -> tuple[int, int]:
+    """(count, remaining) of a ``#DATA`` reply header: :func:`decode_reply` for
+    ``read_stream`` without the dictionary (once per stream read)."""
+    _raise_error(line, _STREAM_HEADER.request.key)
+    m = _STREAM_HEADER.reply.regex.match(line)
+    if m is None:
+        decode_reply(_STREAM_HEADER, line)  # raises its FramingError
+        raise AssertionError("unreachable")
+    count, remaining = m.groups()
+    return int(count), int(remaining)
+
+
 class RequestError(Exception):
     """A request the instrument rejects; carries the ``#ERR`` code (simulator side)."""
 
@@ -157,6 +172,13 @@ def decode_request(line: str) -> tuple[Command, Values]:
 
     Raises RequestError 10 for an unknown key and 11 for a known key with a bad argument.
     """
+    literal = _LITERAL_REQUESTS.get(line)  # a query or argument-less action, as sent
+    if literal is not None:
+        return literal, {}
+    return _decode_request(line)
+
+
+def _decode_request(line: str) -> tuple[Command, Values]:
     parts = split_key(line)
     if parts is None:
         raise RequestError(10, "unknown command")
@@ -180,6 +202,14 @@ def _by_key() -> dict[str, tuple[Command, ...]]:
 
 #: The table's commands by request key, in table order (``:GAP`` sets or reads the gap).
 _BY_KEY = _by_key()
+
+#: Requests without fields (``#DATA[?]``, ``:STOP[]``), line -> command: what
+#: :func:`_decode_request` finds for them (the table's other shapes never match a literal).
+_LITERAL_REQUESTS = {
+    line: _decode_request(line)[0]
+    for line in (c.request.encode() for c in COMMANDS.values()
+                 if isinstance(c.request.shape, str))
+}
 
 
 #: Characters an ``#ERR`` text may not carry, and their stand-ins.

@@ -18,7 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from drivers.mcr501.codec import RECORD_FIELDS, Values, decode_record_rows, decode_reply
+from drivers.mcr501.codec import (
+    RECORD_FIELDS,
+    Values,
+    decode_record_rows,
+    decode_reply,
+    decode_stream_header,
+)
 from drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
 from drivers.mcr501.transport import LineTransport, VisaTransport
 from instrument.clock import Clock
@@ -43,6 +49,7 @@ MIN_STREAM_INTERVAL = 1e-3
 #: Longest wait (s) for the acknowledgement of a stop sent after a fault (ADR 0060): the stop
 #: goes out at once; a silent instrument must not double the time to report the fault.
 STOP_ACK_TIMEOUT_S = 0.5
+_STREAM_REQUEST = COMMANDS["read_stream"].request.encode()
 #: A record later than this many intervals after the one before it means points were lost.
 GAP_TOLERANCE = 1.5
 
@@ -136,11 +143,15 @@ class MCR501:
 
     def _transact(self, name: str, **values: object) -> Values:
         command = COMMANDS[name]
+        self._send(command.request.encode(**values))
+        return decode_reply(command, self._transport.read_line())
+
+    def _send(self, line: str) -> None:
+        """Write a request line, draining first if a late reply may be on its way."""
         if self._resync:
             self._resync = False
             self._drain()
-        self._transport.write_line(command.request.encode(**values))
-        return decode_reply(command, self._transport.read_line())
+        self._transport.write_line(line)
 
     @contextlib.contextmanager
     def _guard(self) -> Iterator[None]:
@@ -329,18 +340,19 @@ class MCR501:
         """
         t0 = 0.0 if self._stream_t0 is None else self._stream_t0
         values: list[float] = []
+        transport = self._transport
         while True:
-            header = self._transact("read_stream")
-            count = int(header["count"])
+            self._send(_STREAM_REQUEST)
+            count, remaining = decode_stream_header(transport.read_line())
             if count:
-                read_line = self._transport.read_line
-                batch = decode_record_rows([read_line() for _ in range(count)])
+                batch = decode_record_rows(transport.read_lines(count))
                 self._check_continuity(batch[0], batch[-len(RECORD_FIELDS)])
                 values += batch
-            if int(header["remaining"]) == 0:
+            if remaining == 0:
                 break
-        rows = np.array(values, dtype=float).reshape(-1, len(RECORD_FIELDS)).T.copy()
-        t_s, angle_deg, torque_mnm, force_n, gap_mm = rows
+        rows = np.array(values, dtype=float).reshape(-1, len(RECORD_FIELDS))
+        t_s, angle_deg, torque_mnm, gap_mm = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 4]
+        force_n = rows[:, 3].copy()  # the only column used as it is: its own array
         # The same operations as one point at a time (math.radians is x * (pi / 180)).
         angle = np.radians(angle_deg)
         return StreamBlock(t0 + t_s, angle, angle * self._config.arm, torque_mnm * 1e-3,

@@ -59,17 +59,18 @@ class ArmRecorder:
     def _update_trend(self, data: dict[str, FloatArray]) -> None:
         t = data["t_s"]
         for column in {c for c, _ in self._watched({"torque_Nm": 0.0})}:
-            v = np.abs(data.get(column, np.empty(0)))
-            if v.size == 0:
+            v = data.get(column)
+            if v is None or len(v) == 0:
                 continue
+            first, last = abs(float(v[0])), abs(float(v[-1]))  # only the ends are used
             prev = self._trend.get(column)
-            if v.size >= 2 and t[-1] > t[0]:
-                rate = float(v[-1] - v[0]) / float(t[-1] - t[0])
+            if len(v) >= 2 and t[-1] > t[0]:
+                rate = (last - first) / float(t[-1] - t[0])
             elif prev is not None:
-                rate = (float(v[-1]) - prev[0]) / max(self.interval, 1e-9)
+                rate = (last - prev[0]) / max(self.interval, 1e-9)
             else:
                 rate = 0.0
-            self._trend[column] = (float(v[-1]), rate)
+            self._trend[column] = (last, rate)
 
     def next_read(self, watch: dict[str, float] | None = None) -> float:
         """Lab time to the next read: the read period, shortened to one stream interval when

@@ -10,6 +10,7 @@ to the next request.
 from __future__ import annotations
 
 import math
+import operator
 import threading
 from collections import deque
 
@@ -24,6 +25,8 @@ from simulators.mcr501.physics import ShearCell
 
 _RPM = 2.0 * math.pi / 60.0
 _MOTION = frozenset({"rotate", "stop", "hold", "set_gap"})
+#: A stream sample's true values in record order.
+_SAMPLE_ROW = operator.attrgetter("t", "angle", "torque", "normal_force", "gap")
 
 
 def _quantize(value: float, step: float) -> float:
@@ -223,8 +226,7 @@ class MCR501Simulator:
         # measured_force would one point at a time: one draw of 2n normals is the same stream.
         cfg = self.config
         z = self._stream_rng.standard_normal(2 * len(batch))
-        t, angle, torque, force, gap = np.array(
-            [(s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch]).T.copy()
+        t, angle, torque, force, gap = np.array(list(map(_SAMPLE_ROW, batch))).T.copy()
         torque += cfg.torque_noise * z[0::2]
         force += cfg.normal_force_noise * z[1::2]
         # np.rint rounds half to even, as round() does in _quantize; np.degrees is

@@ -57,7 +57,7 @@ def test_an_overflow_flag_at_the_stop_is_a_stream_overflow(rm: Any) -> None:
 
 def test_busy_has_a_message_in_plain_words() -> None:
     assert BUSY == 20 and "another client" in ERROR_CODES[BUSY]
-    with pytest.raises(InstrumentBusy, match="error 20.*another client") as info:
+    with pytest.raises(InstrumentBusy, match=r"error 20.*another client") as info:
         decode_reply(COMMANDS["identify"], "#ERR[20;]")
     assert isinstance(info.value, DeviceErrorReply) and info.value.code == BUSY
 
