@@ -50,6 +50,7 @@ MIN_STREAM_INTERVAL = 1e-3
 #: goes out at once; a silent instrument must not double the time to report the fault.
 STOP_ACK_TIMEOUT_S = 0.5
 _STREAM_REQUEST = COMMANDS["read_stream"].request.encode()
+_MILLI = np.array(1e-3)
 #: A record later than this many intervals after the one before it means points were lost.
 GAP_TOLERANCE = 1.5
 
@@ -355,8 +356,9 @@ class MCR501:
         force_n = rows[:, 3].copy()  # the only column used as it is: its own array
         # The same operations as one point at a time (math.radians is x * (pi / 180)).
         angle = np.radians(angle_deg)
-        return StreamBlock(t0 + t_s, angle, angle * self._config.arm, torque_mnm * 1e-3,
-                           force_n, gap_mm * 1e-3)
+        # 0-d array operands: the same float64 operations, faster than with Python floats.
+        return StreamBlock(np.array(t0) + t_s, angle, angle * np.array(self._config.arm),
+                           torque_mnm * _MILLI, force_n, gap_mm * _MILLI)
 
     def _check_continuity(self, first: float, last: float) -> None:
         """StreamOverflow if the batch's first record is not the one after the last read."""
