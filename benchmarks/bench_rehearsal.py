@@ -1,6 +1,6 @@
 """Wall time of `gelrig plan`'s rehearsal of the paper protocols on the rigs' twins.
 
-Run: python benchmarks/bench_rehearsal.py [--repeats 3] [--with-run]
+Run: python benchmarks/bench_rehearsal.py [--repeats 3] [--with-run] [--only shear]
 
 The twin is built by gelrig.factory.build_twin (each instrument's simulator, the rheometer and
 the force input in process) and the protocol runs through the same Runner, steps and drivers
@@ -46,11 +46,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--with-run", action="store_true")
+    parser.add_argument("--only", choices=("compression", "shear"),
+                        help="time one protocol (e.g. to compare two checkouts, run by run)")
     args = parser.parse_args()
     baselines = {"compression": median_time(model_compression, args.repeats),
                  "shear": median_time(model_ladder, args.repeats)}
     targets = {"compression": 2.0, "shear": 5.0}
-    for kind in ("compression", "shear"):
+    for kind in (args.only,) if args.only else ("compression", "shear"):
         results = [rehearsal(kind) for _ in range(args.repeats)]
         wall = statistics.median(r[0] for r in results)
         cpu = statistics.median(r[1] for r in results)

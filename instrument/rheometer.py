@@ -13,8 +13,12 @@ constant in code.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import ClassVar, Protocol, runtime_checkable
+from typing import ClassVar, Protocol, overload, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from instrument.fields import Config, Field, Where, param
 from instrument.identity import Identity
@@ -35,6 +39,63 @@ class StreamPoint:
     torque: float
     normal_force: float
     gap: float
+
+
+FloatArray = NDArray[np.float64]
+
+
+class StreamBlock(Sequence[StreamPoint]):
+    """Stream points as columns (1-D float arrays of one length, SI units, oldest first).
+
+    What :meth:`Rheometer.read_stream` returns from the driver: a read carries tens of points,
+    and the recorder wants columns, so no per-point object is made on the way. It is still a
+    sequence of :class:`StreamPoint` (built on access) for callers that iterate.
+    """
+
+    __slots__ = ("angle", "gap", "normal_force", "t", "theta", "torque")
+
+    def __init__(self, t: FloatArray, angle: FloatArray, theta: FloatArray,
+                 torque: FloatArray, normal_force: FloatArray, gap: FloatArray):
+        self.t, self.angle, self.theta = t, angle, theta
+        self.torque, self.normal_force, self.gap = torque, normal_force, gap
+
+    @classmethod
+    def of(cls, points: Iterable[StreamPoint]) -> StreamBlock:
+        """``points`` as a block (a block is returned as it is)."""
+        if isinstance(points, StreamBlock):
+            return points
+        rows = [(p.t, p.angle, p.theta, p.torque, p.normal_force, p.gap) for p in points]
+        if not rows:
+            return cls(*(np.empty(0) for _ in range(6)))
+        return cls(*(np.array(column, dtype=float) for column in zip(*rows, strict=True)))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @overload
+    def __getitem__(self, index: int) -> StreamPoint: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> StreamBlock: ...
+
+    def __getitem__(self, index: int | slice) -> StreamPoint | StreamBlock:
+        if isinstance(index, slice):
+            return StreamBlock(self.t[index], self.angle[index], self.theta[index],
+                               self.torque[index], self.normal_force[index], self.gap[index])
+        return StreamPoint(float(self.t[index]), float(self.angle[index]),
+                           float(self.theta[index]), float(self.torque[index]),
+                           float(self.normal_force[index]), float(self.gap[index]))
+
+    def __iter__(self) -> Iterator[StreamPoint]:
+        return (self[i] for i in range(len(self)))
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to any sequence of the same points (a list of StreamPoint included)."""
+        if not isinstance(other, Sequence):
+            return NotImplemented
+        return len(self) == len(other) and list(self) == list(other)
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays, like a list
 
 
 @dataclass(frozen=True)
@@ -125,8 +186,10 @@ class Rheometer(Protocol):
         """Start recording points every ``interval`` seconds on the instrument."""
         ...
 
-    def read_stream(self) -> list[StreamPoint]:
-        """Every point recorded since the last read, oldest first."""
+    def read_stream(self) -> Sequence[StreamPoint]:
+        """Every point recorded since the last read, oldest first (the MCR 501 driver gives a
+        :class:`StreamBlock`). Points the instrument dropped are never skipped silently: a
+        driver raises :class:`instrument.errors.InstrumentError` naming the loss."""
         ...
 
     def stop_stream(self) -> None:

@@ -10,6 +10,7 @@ rehearsal on the rig's twin passes, a run passes too (docs/decisions/0090).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from instrument.errors import LimitError
@@ -187,7 +188,7 @@ class CappedRheometer:
     def start_stream(self, interval: float) -> None:
         self.inner.start_stream(interval)
 
-    def read_stream(self) -> list[StreamPoint]:
+    def read_stream(self) -> Sequence[StreamPoint]:
         return self.inner.read_stream()
 
     def stop_stream(self) -> None:

@@ -194,6 +194,8 @@ class Counter:
                                   what))
 
     def _samples(self, data: Mapping[str, FloatArray]) -> None:
+        """Count a block. Called once per read (thousands of small blocks in a shear ladder):
+        the ufuncs are called directly, which is what np.diff, ndarray.sum/min/max compute."""
         figures = self.current
         if figures is None or not data:
             return
@@ -202,12 +204,13 @@ class Counter:
         if n == 0:
             return
         figures.samples += n
-        figures.bytes += sum(int(np.asarray(v).nbytes) for v in kept)
+        figures.bytes += sum(v.nbytes if type(v) is np.ndarray else int(np.asarray(v).nbytes)
+                             for v in kept)
         for column in TRAVEL_COLUMNS:
             if column in data:
                 v = np.asarray(data[column], dtype=float)
                 prev = self._last.get(column)
-                path = float(np.abs(np.diff(v)).sum())
+                path = float(np.add.reduce(np.abs(v[1:] - v[:-1])))
                 if prev is not None and math.isfinite(prev):
                     path += abs(float(v[0]) - prev)
                 figures.travel += path
@@ -215,7 +218,7 @@ class Counter:
         for column in RANGE_COLUMNS:
             if column in data:
                 v = np.asarray(data[column], dtype=float)
-                lo, hi = float(v.min()), float(v.max())
+                lo, hi = float(np.minimum.reduce(v)), float(np.maximum.reduce(v))
                 old = figures.ranges.get(column)
                 figures.ranges[column] = (lo, hi) if old is None else (min(old[0], lo),
                                                                        max(old[1], hi))

@@ -47,6 +47,18 @@ COMPLETIONS = {MsgId.MOT_MOVE_COMPLETED, MsgId.MOT_MOVE_STOPPED, MsgId.MOT_MOVE_
 KEEPALIVE_PERIOD_S = 0.5  # the controller wants an ack at least once a second
 SOFT_LIMIT_STOP_PROFILED = 3  # LIMSWITCHPARAMS software-limit mode
 ARRIVAL_TOLERANCE_COUNTS = 2
+#: Requests (with their reply) that the driver may send to resynchronise after a request went
+#: unanswered: harmless reads, each with a reply id of its own. APT replies carry no request
+#: id, so a late reply is told from a fresh one by its place before the probe's reply.
+SYNC_PROBES: tuple[tuple[int, int, int], ...] = (
+    (MsgId.MOD_REQ_CHANENABLESTATE, CHANNEL, MsgId.MOD_GET_CHANENABLESTATE),
+    (MsgId.HW_REQ_INFO, 0, MsgId.HW_GET_INFO),
+    (MsgId.MOT_REQ_VELPARAMS, CHANNEL, MsgId.MOT_GET_VELPARAMS),
+    (MsgId.MOT_REQ_HOMEPARAMS, CHANNEL, MsgId.MOT_GET_HOMEPARAMS),
+    (MsgId.MOT_REQ_LIMSWITCHPARAMS, CHANNEL, MsgId.MOT_GET_LIMSWITCHPARAMS),
+    (MsgId.MOT_REQ_POSCOUNTER, CHANNEL, MsgId.MOT_GET_POSCOUNTER),
+    (MsgId.MOT_REQ_STATUSBITS, CHANNEL, MsgId.MOT_GET_STATUSBITS),
+)
 
 
 class KDC101:
@@ -75,6 +87,10 @@ class KDC101:
         self._framer = AptFramer()
         self.framing_errors = 0
         self.ignored_messages = 0
+        #: Replies to requests that went unanswered (timeout, garbage, Ctrl-C): they may still
+        #: come (a frozen controller that resumes), so the next request resynchronises first.
+        self._unanswered: set[int] = set()
+        self.stale_replies = 0  # late replies dropped by a resynchronisation
         self.rts_supported = True
         self._maybe_moving = False
         self._status_updates = status_updates
@@ -101,6 +117,7 @@ class KDC101:
             return self
         self._link = self._connect()
         self._framer.clear()
+        self._unanswered.clear()
         self._port_timeout = None
         try:
             self._open_sequence()
@@ -242,18 +259,30 @@ class KDC101:
 
         If only invalid bytes came in the first half of the deadline (garbage ate the reply),
         the request is sent once more and the second half waits for that answer: a retry
-        never extends the deadline (ADR 0060).
+        never extends the deadline (ADR 0060). After a request went unanswered, the first
+        query resynchronises within the same deadline (:meth:`_resync`).
         """
         timeout = self.config.reply_timeout_s if timeout is None else timeout
+        end = self.clock.now() + timeout
+        try:
+            if self._unanswered:
+                self._resync(end, request.name)
+            reply = self._exchange(request, reply_id, end)
+        except BaseException:
+            self._unanswered.add(reply_id)  # it may still come, late
+            raise
+        return reply
+
+    def _exchange(self, request: Message, reply_id: int, end: float) -> Message:
+        """Send ``request``; its reply before ``end`` (one resend after garbage, see _query)."""
         errors_before = self.framing_errors
         start = self.clock.now()
-        end = start + timeout
 
         def wanted(m: Message) -> bool:
             return m.msg_id == reply_id
 
         self._send(request)
-        reply = self._await(wanted, start + timeout / 2)
+        reply = self._await(wanted, start + (end - start) / 2)
         if reply is None:
             self._drop_partial_frame()
             if self.framing_errors > errors_before:
@@ -262,11 +291,46 @@ class KDC101:
         if reply is not None:
             return reply
         self._drop_partial_frame()
-        what = f"no {message_name(reply_id)} within {timeout:g} s after {request.name}"
+        what = (f"no {message_name(reply_id)} within {end - start:.3g} s after "
+                f"{request.name}")
         if self.framing_errors > errors_before:
             raise FramingError(f"KDC101 at {self.address}: {what} (only invalid bytes came: "
                                f"{self._framer.discarded} skipped so far)")
         raise InstrumentTimeout(f"KDC101 at {self.address}: {what}")
+
+    def _resync(self, end: float, before: str) -> None:
+        """Drop late replies to unanswered requests before a new request is sent.
+
+        The input is discarded, then a harmless probe whose reply id no unanswered request
+        shares is sent; the controller answers in order, so whatever comes before the probe's
+        reply is late (dropped, error replies included). If the probe is not answered by
+        ``end`` the instrument is still silent: InstrumentTimeout, and the next query tries
+        again with another probe.
+        """
+        self._discard_input()
+        probe = next((p for p in SYNC_PROBES if p[2] not in self._unanswered), None)
+        if probe is None:  # every probe is pending too: the input discarded is all we can do
+            return
+        msg_id, param1, reply_id = probe
+        self._unanswered.add(reply_id)
+        self._send(command(msg_id, param1))
+        while True:
+            try:
+                reply = self._await(lambda m: True, end)
+            except DeviceErrorReply:
+                self.stale_replies += 1  # an error reply to an old request
+                continue
+            if reply is None:
+                self._drop_partial_frame()
+                raise InstrumentTimeout(
+                    f"KDC101 at {self.address}: still silent after an unanswered request: no "
+                    f"{message_name(reply_id)} to a resynchronising {message_name(msg_id)} "
+                    f"before {before}; {before} not sent")
+            if reply.msg_id == reply_id:
+                self._unanswered.clear()
+                return
+            if reply.msg_id != MsgId.MOT_GET_DCSTATUSUPDATE and reply.msg_id not in COMPLETIONS:
+                self.stale_replies += 1
 
     def _drop_partial_frame(self) -> None:
         """A truncated frame stuck in the buffer counts as a framing error and is dropped."""

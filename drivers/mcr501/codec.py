@@ -8,7 +8,10 @@ itself); anything not matching the expected shape raises :class:`FramingError`.
 
 from __future__ import annotations
 
+import re
+
 from drivers.mcr501.commands import (
+    BUSY,
     COMMANDS,
     ERROR,
     ERROR_CODES,
@@ -28,6 +31,10 @@ class InstrumentTrip(DeviceErrorReply):
 
 class UnknownCommand(DeviceErrorReply):
     """The instrument did not recognise a command of the table (confirm the table)."""
+
+
+class InstrumentBusy(DeviceErrorReply):
+    """Another client holds the instrument's line (error 20): nothing was done."""
 
 
 def encode(name: str, **values: object) -> str:
@@ -56,6 +63,8 @@ def _raise_error(line: str, expected: str) -> None:
         raise InstrumentTrip(message, code)
     if code == 10:
         raise UnknownCommand(message, code)
+    if code == BUSY:
+        raise InstrumentBusy(f"{message} ({ERROR_CODES[BUSY]})", code)
     raise DeviceErrorReply(message, code)
 
 
@@ -102,6 +111,53 @@ def decode_record_row(line: str) -> RecordRow:
     return t_s, angle_deg, torque_mnm, force_n, gap_mm
 
 
+#: Any number of ``:MEAS`` records, each followed by a newline: one match validates a batch
+#: as the full-line regex validates each line (the field patterns have no groups).
+_RECORD_BLOCK = re.compile(
+    "(?:" + re.escape(RECORD.key) + r"\["
+    + ";".join(f.pattern for f in RECORD.shape if not isinstance(RECORD.shape, str))
+    + r"\]\n)*"
+)
+_RECORD_PREFIX = f"{RECORD.key}["
+
+
+def decode_record_rows(lines: list[str]) -> list[float]:
+    """The values of ``lines`` (``:MEAS`` records) in table order, flat (5 per record).
+
+    The batch form of :func:`decode_record_row`, with the same validation and errors: a batch
+    that does not match as a whole is decoded line by line to raise the first line's error.
+    """
+    if not lines:
+        return []
+    block = "\n".join(lines) + "\n"
+    if _RECORD_BLOCK.fullmatch(block) is not None:
+        values = block.replace(_RECORD_PREFIX, "").replace("]\n", ";").split(";")
+        values.pop()  # after the last record's separator
+        if len(values) == len(RECORD_FIELDS) * len(lines):
+            return list(map(float, values))
+    rows = [decode_record_row(line) for line in lines]  # raises for the first bad line
+    raise FramingError(f"MCR 501: {len(lines)} stream records hold line breaks: {rows[:1]!r}")
+
+
+#: The field names of a ``:MEAS`` record, in table order.
+RECORD_FIELDS = tuple(f.name for f in RECORD.shape if not isinstance(RECORD.shape, str))
+
+
+_STREAM_HEADER = COMMANDS["read_stream"]
+
+
+def decode_stream_header(line: str) -> tuple[int, int]:
+    """(count, remaining) of a ``#DATA`` reply header: :func:`decode_reply` for
+    ``read_stream`` without the dictionary (once per stream read)."""
+    _raise_error(line, _STREAM_HEADER.request.key)
+    m = _STREAM_HEADER.reply.regex.match(line)
+    if m is None:
+        decode_reply(_STREAM_HEADER, line)  # raises its FramingError
+        raise AssertionError("unreachable")
+    count, remaining = m.groups()
+    return int(count), int(remaining)
+
+
 class RequestError(Exception):
     """A request the instrument rejects; carries the ``#ERR`` code (simulator side)."""
 
@@ -116,6 +172,13 @@ def decode_request(line: str) -> tuple[Command, Values]:
 
     Raises RequestError 10 for an unknown key and 11 for a known key with a bad argument.
     """
+    literal = _LITERAL_REQUESTS.get(line)  # a query or argument-less action, as sent
+    if literal is not None:
+        return literal, {}
+    return _decode_request(line)
+
+
+def _decode_request(line: str) -> tuple[Command, Values]:
     parts = split_key(line)
     if parts is None:
         raise RequestError(10, "unknown command")
@@ -139,6 +202,14 @@ def _by_key() -> dict[str, tuple[Command, ...]]:
 
 #: The table's commands by request key, in table order (``:GAP`` sets or reads the gap).
 _BY_KEY = _by_key()
+
+#: Requests without fields (``#DATA[?]``, ``:STOP[]``), line -> command: what
+#: :func:`_decode_request` finds for them (the table's other shapes never match a literal).
+_LITERAL_REQUESTS = {
+    line: _decode_request(line)[0]
+    for line in (c.request.encode() for c in COMMANDS.values()
+                 if isinstance(c.request.shape, str))
+}
 
 
 #: Characters an ``#ERR`` text may not carry, and their stand-ins.

@@ -295,6 +295,8 @@ STATUS_FLAGS: MappingProxyType[str, int] = MappingProxyType(
 ERROR_CODES: MappingProxyType[int, str] = MappingProxyType(
     {
         10: "unknown command",
+        20: "instrument busy: another client (the vendor software or a second gelrig) holds "
+            "its line; close that client and retry",
         11: "bad argument",
         12: "gap not referenced",
         13: "value out of range",
@@ -302,5 +304,7 @@ ERROR_CODES: MappingProxyType[int, str] = MappingProxyType(
         32: "torque over range",
     }
 )
+#: The code of a request refused because another client holds the instrument.
+BUSY = 20
 #: Codes that mean the instrument stopped its motion by itself.
 TRIP_CODES = frozenset({31, 32})

@@ -28,6 +28,10 @@ class LineTransport(Protocol):
         """Receive one line without its termination; raise InstrumentTimeout if none comes."""
         ...
 
+    def read_lines(self, n: int) -> list[str]:
+        """Receive ``n`` lines (a stream reply's records): ``read_line`` ``n`` times."""
+        ...
+
     def discard_input(self) -> None:
         """Drop whatever has arrived but not been read (resynchronise after a fault)."""
         ...
@@ -147,6 +151,9 @@ class VisaTransport:
             if isinstance(mapped, InstrumentTimeout) and self._peer_closed():
                 mapped = Disconnected(f"MCR 501 on {self.resource_name}: connection closed")
             raise mapped from exc
+
+    def read_lines(self, n: int) -> list[str]:
+        return [self.read_line() for _ in range(n)]
 
     @contextlib.contextmanager
     def reply_timeout(self, seconds: float) -> Iterator[None]:

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from instrument.contact import FloatArray
-from instrument.rheometer import Rheometer, StreamPoint
+from instrument.rheometer import Rheometer, StreamBlock, StreamPoint
 from protocols.context import StepContext
 from protocols.rig import ShearRig
 
@@ -34,18 +35,14 @@ class ArmRecorder:
         self._trend: dict[str, tuple[float, float]] = {}  # column -> (last |value|, rate /s)
         self.rheo.start_stream(interval)
 
-    def _publish(self, points: list[StreamPoint]) -> dict[str, FloatArray] | None:
+    def _publish(self, points: Sequence[StreamPoint]) -> dict[str, FloatArray] | None:
         if not points:
             return None
-        n = len(points)
-        data = {
-            "t_s": np.array([p.t for p in points]),
-            "angle_rad": np.array([p.angle for p in points]),
-            "theta_m": np.array([p.theta for p in points]),
-            "torque_Nm": np.array([p.torque for p in points]),
-            "normal_force_N": np.array([p.normal_force for p in points]),
-            "gap_m": np.array([p.gap for p in points]),
-        }
+        block = StreamBlock.of(points)
+        n = len(block)
+        data = {"t_s": block.t, "angle_rad": block.angle, "theta_m": block.theta,
+                "torque_Nm": block.torque, "normal_force_N": block.normal_force,
+                "gap_m": block.gap}
         for key, value in self.labels.items():
             data[key] = np.full(n, value)
         self._update_trend(data)
@@ -62,17 +59,18 @@ class ArmRecorder:
     def _update_trend(self, data: dict[str, FloatArray]) -> None:
         t = data["t_s"]
         for column in {c for c, _ in self._watched({"torque_Nm": 0.0})}:
-            v = np.abs(data.get(column, np.empty(0)))
-            if v.size == 0:
+            v = data.get(column)
+            if v is None or len(v) == 0:
                 continue
+            first, last = abs(float(v[0])), abs(float(v[-1]))  # only the ends are used
             prev = self._trend.get(column)
-            if v.size >= 2 and t[-1] > t[0]:
-                rate = float(v[-1] - v[0]) / float(t[-1] - t[0])
+            if len(v) >= 2 and t[-1] > t[0]:
+                rate = (last - first) / float(t[-1] - t[0])
             elif prev is not None:
-                rate = (float(v[-1]) - prev[0]) / max(self.interval, 1e-9)
+                rate = (last - prev[0]) / max(self.interval, 1e-9)
             else:
                 rate = 0.0
-            self._trend[column] = (float(v[-1]), rate)
+            self._trend[column] = (last, rate)
 
     def next_read(self, watch: dict[str, float] | None = None) -> float:
         """Lab time to the next read: the read period, shortened to one stream interval when

@@ -10,6 +10,7 @@ to the next request.
 from __future__ import annotations
 
 import math
+import operator
 import threading
 from collections import deque
 
@@ -24,6 +25,9 @@ from simulators.mcr501.physics import ShearCell
 
 _RPM = 2.0 * math.pi / 60.0
 _MOTION = frozenset({"rotate", "stop", "hold", "set_gap"})
+#: A stream sample's true values in record order.
+_SAMPLE_ROW = operator.attrgetter("t", "angle", "torque", "normal_force", "gap")
+_THOUSAND = np.array(1e3)
 
 
 def _quantize(value: float, step: float) -> float:
@@ -51,6 +55,8 @@ class MCR501Simulator:
         self._stream_rng = np.random.default_rng(self.config.seed)
         self._read_rng = np.random.default_rng([self.config.seed, 1])
         self._lock = threading.Lock()
+        self._figures_of: SimConfig | None = None
+        self._figures: tuple[np.ndarray, ...] = ()
         self._handlers = {
             "identify": self._identify,
             "status": self._status,
@@ -221,16 +227,28 @@ class MCR501Simulator:
             return lines
         # The noise of each point is drawn torque first, then force, as measured_torque and
         # measured_force would one point at a time: one draw of 2n normals is the same stream.
-        cfg = self.config
+        # The config's numbers as 0-d arrays: the same float64 products, without numpy's
+        # slower path for a Python float operand (a read carries tens of points).
+        t_noise, f_noise, t_res, f_res = self._noise_figures()
         z = self._stream_rng.standard_normal(2 * len(batch))
-        t, angle, torque, force, gap = (np.array(column) for column in zip(
-            *((s.t, s.angle, s.torque, s.normal_force, s.gap) for s in batch), strict=True))
-        torque += cfg.torque_noise * z[0::2]
-        force += cfg.normal_force_noise * z[1::2]
+        t, angle, torque, force, gap = np.array(list(map(_SAMPLE_ROW, batch))).T.copy()
+        torque += t_noise * z[0::2]
+        force += f_noise * z[1::2]
         # np.rint rounds half to even, as round() does in _quantize; np.degrees is
         # math.degrees (x * (180 / pi)) elementwise.
-        torque_mnm = (np.rint(torque / cfg.torque_resolution) * cfg.torque_resolution) * 1e3
-        force_n = np.rint(force / cfg.normal_force_resolution) * cfg.normal_force_resolution
+        torque_mnm = (np.rint(torque / t_res) * t_res) * _THOUSAND
+        force_n = np.rint(force / f_res) * f_res
         lines.extend(map(RECORD.row_template.format, t.tolist(), np.degrees(angle).tolist(),
-                         torque_mnm.tolist(), force_n.tolist(), (gap * 1e3).tolist()))
+                         torque_mnm.tolist(), force_n.tolist(), (gap * _THOUSAND).tolist()))
         return lines
+
+    def _noise_figures(self) -> tuple[np.ndarray, ...]:
+        """Torque and normal-force noise and resolution of the config in force, as 0-d
+        arrays (made again if the config was replaced)."""
+        cfg = self.config
+        if self._figures_of is not cfg:
+            self._figures = tuple(np.array(float(v)) for v in (
+                cfg.torque_noise, cfg.normal_force_noise, cfg.torque_resolution,
+                cfg.normal_force_resolution))
+            self._figures_of = cfg
+        return self._figures

@@ -34,6 +34,15 @@ class DirectLink:
             raise InstrumentTimeout("MCR 501 direct link: no reply pending")
         return self._pending.popleft()
 
+    def read_lines(self, n: int) -> list[str]:
+        """``n`` lines, as ``read_line`` n times (all that is pending at once when it is n)."""
+        pending = self._pending
+        if len(pending) == n and not self._closed:
+            lines = list(pending)
+            pending.clear()
+            return lines
+        return [self.read_line() for _ in range(n)]
+
     def discard_input(self) -> None:
         self._pending.clear()
 

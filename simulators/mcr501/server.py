@@ -18,14 +18,12 @@ import time
 from typing import Any
 
 from drivers.mcr501.codec import error_line
-from drivers.mcr501.commands import TERMINATION
+from drivers.mcr501.commands import BUSY, TERMINATION
 from simulators.mcr501.instrument import MCR501Simulator
 from simulators.mcr501.lines import TOO_LONG, LineSplitter
 
 #: Longest request line accepted (bytes, without its end); ten times the longest table request.
 MAX_LINE = 256
-#: ``#ERR`` code for a connection refused because another client holds the instrument.
-BUSY = 20
 #: How long a new connection waits for the previous client to go (s): a client that closes and
 #: at once reopens must not be refused because the server has not yet seen the close.
 HANDOVER = 0.5

@@ -119,3 +119,45 @@ def test_killed_server_is_a_disconnection_within_the_deadline(served: Served) ->
         assert took < BOUND, took
     finally:
         stage.close()
+
+
+
+LATE = CONFIG.reply_timeout_s + 0.4  # a reply delay beyond the deadline (s)
+
+
+def slower(stage: KDC101) -> None:
+    """Set a new velocity: the driver reads the parameters back and compares."""
+    stage.set_velocity(stage.max_velocity_m_s / 2, stage.acceleration_m_s2)
+
+
+def test_a_late_reply_is_not_taken_for_the_next_requests_reply(
+        proxied: tuple[KDC101Simulator, FaultProxy, KDC101]) -> None:
+    """APT replies carry no request id: the reply to a timed-out read, arriving after the
+    next read of the same kind went out, must not be taken for that read's reply (here the
+    old velocity parameters would fail the read-back of new ones)."""
+    _, proxy, stage = proxied
+    proxy.delay(LATE)
+    failing(stage.velocity_params, InstrumentTimeout)  # its reply is still on its way
+    proxy.heal()  # the late reply is delivered first, then the fresh ones (in order)
+    slower(stage)
+    assert stage.velocity_params().max_velocity == stage.config.apt_velocity(
+        stage.max_velocity_m_s)
+    assert stage.stale_replies == 1
+    assert stage.position_counts() == stage.position_counts()  # in step
+
+
+def test_a_frozen_controller_that_resumes_answers_in_step(served: Served) -> None:
+    """SIGSTOP, a read times out, SIGCONT: the resumed server answers the old read at once;
+    the driver drops that answer and reads the new velocity parameters back."""
+    stage = KDC101(f"socket://127.0.0.1:{served.port}", CONFIG, RealClock()).open()
+    try:
+        served.pause()
+        try:
+            assert failing(stage.velocity_params, InstrumentTimeout)[1] < BOUND
+        finally:
+            served.resume()
+        slower(stage)
+        assert stage.stale_replies == 1
+        assert not stage.status().busy
+    finally:
+        stage.close()

@@ -197,3 +197,82 @@ def test_the_paper_shear_rehearsal_is_what_it_was_before_the_fast_paths() -> Non
                "min": np.min(v), "max": np.max(v)}
         for name, want in figures.items():
             assert float(got[name]) == pytest.approx(want, rel=1e-12, abs=1e-300), (column, name)
+
+
+# -- the batch paths of the driver (issue 12, i12-finish) ------------------------------------
+
+def _records(n: int, seed: int = 3) -> list[str]:
+    rng = np.random.default_rng(seed)
+    return [RECORD.encode_row(*v) for v in rng.uniform(-500, 500, (n, 5)).tolist()]
+
+
+@pytest.mark.parametrize("n", [1, 2, 17, 100])
+def test_a_batch_of_records_decodes_as_each_record_does(n: int) -> None:
+    from drivers.mcr501.codec import decode_record_rows
+
+    lines = _records(n)
+    assert decode_record_rows(lines) == [v for line in lines for v in decode_record_row(line)]
+    assert decode_record_rows([]) == []
+
+
+@pytest.mark.parametrize("bad", [
+    ERROR.encode(code=32, text="torque over range"), ":MEAS[1;2;3;4]", ":MEAS[1;2;3;4;x]",
+    "#DATA[1;0]", ":MEAS[1;2;3;4;5]\n:MEAS[1;2;3;4;5]",
+])
+def test_a_batch_with_a_bad_record_raises_what_that_record_raises(bad: str) -> None:
+    from drivers.mcr501.codec import decode_record_rows
+
+    lines = _records(5)
+    lines[3] = bad
+    with pytest.raises(DeviceErrorReply if bad.startswith("#ERR") else FramingError):
+        decode_record_rows(lines)
+
+
+def test_literal_requests_and_the_stream_header_decode_as_the_generic_path() -> None:
+    from drivers.mcr501.codec import _decode_request, decode_reply, decode_stream_header
+
+    for command in COMMANDS.values():
+        if isinstance(command.request.shape, str):
+            line = command.request.encode()
+            assert decode_request(line) == _decode_request(line) == (command, {})
+    header = COMMANDS["read_stream"]
+    for count, remaining in ((0, 0), (100, 4096), (7, 0)):
+        line = header.reply.encode(count=count, remaining=remaining)
+        values = decode_reply(header, line)
+        assert decode_stream_header(line) == (values["count"], values["remaining"])
+    with pytest.raises(FramingError):
+        decode_stream_header("#DATA[1]")
+    with pytest.raises(DeviceErrorReply):
+        decode_stream_header(ERROR.encode(code=11, text="bad argument"))
+
+
+def test_the_driver_block_equals_the_per_point_conversion() -> None:
+    """What read_stream computes on columns is what it computed one point at a time."""
+    from drivers.mcr501 import MCR501
+    from instrument.clock import VirtualClock
+    from instrument.rheometer import StreamBlock
+    from simulators.mcr501 import DirectLink, SimConfig
+
+    clock = VirtualClock()
+    sim = MCR501Simulator(clock, SimConfig(start_referenced=True))
+    link = DirectLink(sim)
+    drv = MCR501(link, clock).open()
+    clock.sleep(2.0)
+    t0 = clock.now()
+    drv.start_stream(0.01)
+    drv.rotate(1e-3)
+    clock.sleep(3.3)  # about 330 points: four #DATA batches
+    sent: list[str] = []
+    real = link.read_lines
+    link.read_lines = lambda n: sent.extend(real(n)) or sent[-n:]  # type: ignore[method-assign]
+    block = drv.read_stream()
+    drv.close()
+    assert isinstance(block, StreamBlock) and len(block) == len(sent) > 300
+    arm = drv.config.arm
+    for point, line in zip(block, sent, strict=True):
+        t_s, angle_deg, torque_mnm, force_n, gap_mm = decode_record_row(line)
+        angle = math.radians(angle_deg)
+        assert (point.t, point.angle, point.theta, point.torque, point.normal_force,
+                point.gap) == (t0 + t_s, angle, angle * arm, torque_mnm * 1e-3, force_n,
+                               gap_mm * 1e-3)
+    assert StreamBlock.of(list(block)) == block
