@@ -8,7 +8,7 @@ Definitions (docs/decisions/0030):
   before contact, so the bearing drag and any normal-force offset drop out.
 - Contact: a sample is in contact when ``|F_h|`` or ``F_v`` exceeds :data:`K_SIGMA` times its
   noise (:func:`instrument.noise.robust_sigma` of the baseline window). The deformed contact length
-  ``l_c`` is the travel from the first such sample to the last (the crossings are
+  ``l_c`` is the travel from the first touch (below) to the last such sample (the crossing
   interpolated linearly between samples).
 - ``l_g`` (the paper's construction): the clockwise and anticlockwise passes at the same
   overlap and speed each start contact on opposite sides of the lower sphere, before any
@@ -275,14 +275,15 @@ def analyse_pass(p: RecordedPass, arm: float, k_sigma: float = K_SIGMA) -> PassR
         if changes.size:
             j = i0 + ip + int(changes[-1]) + 1
             theta_zero = _crossing(f.theta, f.f_h, j, 0.0)
+    touch = first_touch(f, p.direction, i0, i1)
     return PassResult(
         index=p.index, direction=p.direction, speed=p.speed, overlap=p.overlap,
-        contact_start=start, contact_end=end, l_c=abs(end - start),
+        contact_start=start, contact_end=end,
+        l_c=abs(end - (touch if math.isfinite(touch) else start)),
         f_h_peak=float(seg_h[ip]), theta_peak=float(f.theta[i0 + ip]),
         f_h_trough=float(seg_h[it]), theta_trough=float(f.theta[i0 + it]),
         theta_zero=theta_zero, f_v_peak=float(np.max(f.f_v[inside])),
-        noise_h=f.noise_h, noise_v=f.noise_v, travel=travel,
-        touch=first_touch(f, p.direction, i0, i1),
+        noise_h=f.noise_h, noise_v=f.noise_v, travel=travel, touch=touch,
     )
 
 
