@@ -85,3 +85,29 @@ def test_carried_history_is_a_rig_file_option_and_breaks_the_features(tmp_path):
     for r in rows:
         assert r["l_g_m"] < 0.98 * r["chord_m"]
     assert not math.isclose(rows[0]["l_g_m"], rows[1]["l_g_m"], rel_tol=1e-3)
+
+
+@pytest.mark.slow
+def test_the_anisotropic_rig_is_fitted_with_separate_f_h_and_f_v_amplitudes(tmp_path):
+    """The paper's anisotropy through the whole rig: ``[simulator] relax_vertical`` gives F_v
+    G_l = 4 G_e (F_h keeps 5 G_e); the ladder fit with ``FitSetup(anisotropic=True)`` reports
+    both amplitudes with intervals that hold the truth and are told apart."""
+    from instrument import paper
+    from instrument.ladder_analysis import analyse_ladder_step, fit_ladder_model
+    from instrument.model_fit import FitSetup
+
+    spec = paper_ladder.rig(relax_vertical=[["16 kPa", "2000 s"]])
+    run = paper_ladder.record(tmp_path / "run", spec, paper_ladder.protocol(
+        overlaps=2, speeds=["4.75e-5 m/s", "1.19e-4 m/s", "2.37e-4 m/s"]))
+    search = run.read_metadata()["steps"][0]["results"]
+    contact_search, ladder = run.read_step(0), run.read_step(1)
+    contact_search["pass"] = np.full(contact_search["t_s"].size, -1.0)
+    step = analyse_ladder_step(ladder, paper.ARM, 16e-3)
+    assert not step.analysis.problems
+    setup = FitSetup(spec.simulator.r1, spec.simulator.r2, paper.ARM, anisotropic=True)
+    fit = fit_ladder_model(step, [contact_search, ladder], setup, search["touch_gap_m"],
+                           search["lower_sphere_angle_rad"]).fit
+    g_h, g_v = fit.estimate("G_1_h"), fit.estimate("G_1_v")
+    assert g_h.lo < 2e4 < g_h.hi and g_v.lo < 1.6e4 < g_v.hi, (g_h, g_v)
+    assert g_v.hi < g_h.lo
+    assert g_v.value / g_h.value == pytest.approx(0.8, rel=0.03)
