@@ -111,3 +111,12 @@ def test_the_anisotropic_rig_is_fitted_with_separate_f_h_and_f_v_amplitudes(tmp_
     assert g_h.lo < 2e4 < g_h.hi and g_v.lo < 1.6e4 < g_v.hi, (g_h, g_v)
     assert g_v.hi < g_h.lo
     assert g_v.value / g_h.value == pytest.approx(0.8, rel=0.03)
+
+
+def test_mdr_unloading_until_it_is_built_is_a_one_line_rig_file_error():
+    from gelrig.factory import build_rig
+    from instrument.clock import VirtualClock
+    from instrument.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"\[simulator\] unloading = 'mdr'|unloading.*mdr"):
+        build_rig(paper_ladder.rig(unloading="mdr"), VirtualClock())
