@@ -85,14 +85,15 @@ def test_two_terms_fit_a_two_term_material():
     moving = cols["direction"] != 0
     assert np.sqrt(np.mean((f_v[moving] - cols["normal_force_N"][moving]) ** 2)) < 3e-5
     assert fit.material.g_instant == pytest.approx(truth.g_instant, rel=0.03)
-    # Fresh contacts hold little of the slow decay: G_e and the slow term are loosely
-    # determined, and say so in their intervals; the fast term is sharp.
-    for name, value in (("G_e", 3e3), ("G_1", 1.5e4), ("tau_1", 1500.0)):
-        e = fit.estimate(name)
-        assert e.lo < value < e.hi, e
+    # Fresh contacts last a few hundred s of tau_1 = 1500 s: they determine G_e + G_1 and the
+    # initial decay rate G_1/tau_1 of the slow term, not G_e alone (a ridge the linearised
+    # intervals do not describe; docs/decisions/0140). The fast term is sharp.
+    g_e, g_1, tau_1 = (fit.estimate(n).value for n in ("G_e", "G_1", "tau_1"))
+    assert g_e + g_1 == pytest.approx(1.8e4, rel=0.03)
+    assert g_1 / tau_1 == pytest.approx(1.5e4 / 1500.0, rel=0.1)
+    assert fit.estimate("G_e").stderr > 0.1 * g_e  # and it says G_e is loose
     assert fit.estimate("G_2").value == pytest.approx(6e3, rel=0.03)
     assert fit.estimate("tau_2").value == pytest.approx(60.0, rel=0.03)
-    assert sorted(r.tau for r in fit.material.relax)[1] == pytest.approx(1500.0, rel=0.2)
 
 
 def _split_history(carry: bool):
