@@ -10,9 +10,8 @@ fastest speed, the same pass streamed in blocks of 1000 and 100 samples (as a si
 reads), and the per-sample reference update (MdrContact.step) on part of the pass.
 
 With ``--ladder`` it also runs the paper's full shear ladder through the simulated rig (as
-benchmarks/bench_protocols.py does) twice: as shipped, and with the rheometer simulator's
-contact swapped for MdrContact by a patch of simulators.mcr501.physics (until the simulator
-takes ``make_contact(..., unloading="mdr")``), and prints both wall times and their ratio.
+benchmarks/bench_protocols.py does) twice: as shipped (cutoff) and with the rig's
+``[simulator] unloading = "mdr"``, and prints both wall times and their ratio.
 """
 
 from __future__ import annotations
@@ -63,36 +62,15 @@ def _row(name: str, n: int, mdr: float, cut: float | None) -> None:
 
 
 def _ladder_wall(mdr: bool) -> float:
-    """Wall time (s) of the paper's shear ladder on the simulated rig, optionally with MDR."""
+    """Wall time (s) of the paper's shear ladder on the simulated rig, cutoff or MDR
+    (``[simulator] unloading``)."""
     import tempfile
     from pathlib import Path
 
     from bench_protocols import run_protocol
 
-    import simulators.mcr501.physics as physics
-
-    patched = {}
-    if mdr:
-        def make(material: Material, radius: float) -> MdrContact:
-            return MdrContact(material, radius, delta_max=1e-3)
-
-        patched["NormalContact"] = physics.NormalContact
-        physics.NormalContact = make
-        for obj in vars(physics).values():
-            if isinstance(obj, type) and hasattr(obj, "_save") and hasattr(obj, "_restore"):
-                patched[obj.__name__] = (obj._save, obj._restore)
-                obj._save = lambda self: self.contact.save()
-                obj._restore = lambda self, state: self.contact.restore(state)
-    try:
-        with tempfile.TemporaryDirectory() as folder:
-            return run_protocol("shear", Path(folder))[0]
-    finally:
-        for name, value in patched.items():
-            if name == "NormalContact":
-                physics.NormalContact = value
-            else:
-                cls = getattr(physics, name)
-                cls._save, cls._restore = value
+    with tempfile.TemporaryDirectory() as folder:
+        return run_protocol("shear", Path(folder), unloading="mdr" if mdr else "cutoff")[0]
 
 
 def main() -> None:

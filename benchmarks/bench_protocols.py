@@ -12,6 +12,7 @@ instrument stack costs on top of the physics. Targets: compression < 5 s, ladder
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import tempfile
 import time
@@ -30,11 +31,15 @@ from protocols.rigfile import default_rig, load_rig
 from protocols.spec import load_protocol, paper_protocol
 
 
-def run_protocol(kind: str, folder: Path) -> tuple[float, float]:
-    """(wall s, lab s) of one full paper protocol, recorded to disk."""
+def run_protocol(kind: str, folder: Path, **truth: object) -> tuple[float, float]:
+    """(wall s, lab s) of one full paper protocol, recorded to disk; ``truth`` overrides
+    fields of the rig's simulated sample (e.g. ``unloading="mdr"``)."""
     t0 = time.perf_counter()
     clock = VirtualClock()
-    state, _ = execute(load_protocol(paper_protocol(kind)), load_rig(default_rig(kind)), clock,
+    rig = load_rig(default_rig(kind))
+    if truth:
+        rig = dataclasses.replace(rig, simulator=dataclasses.replace(rig.simulator, **truth))
+    state, _ = execute(load_protocol(paper_protocol(kind)), rig, clock,
                        RunDirectory.create(folder, {}), show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"{kind} protocol ended {state.value}")

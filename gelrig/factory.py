@@ -96,7 +96,9 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
             sim = MCR501Simulator(clock, SimConfig(
                 r1=truth.r1, r2=truth.r2, mu=truth.mu, lower_angle=truth.lower_angle,
                 touch_gap=truth.touch_gap, seed=int(truth.seed), arm=entry.config.arm,
-                material=truth.material or PAPER_MATERIAL))
+                material=truth.material or PAPER_MATERIAL,
+                material_vertical=truth.material_vertical, unloading=truth.unloading,
+                carry_history=truth.carry_history))
             if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"

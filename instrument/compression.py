@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from instrument.contact import FloatArray, Material, NormalContact, hertz_prefactor
+from instrument.contact import FloatArray, Material, hertz_prefactor, make_contact
 from instrument.errors import ConfigError
 
 
@@ -61,5 +61,5 @@ def ramp_hold(
     hold_t = t_ramp + dt * np.arange(1, n_hold + 1)
     t = np.concatenate((ramp_t, hold_t))
     delta = ramp_hold_overlap(t, depth, speed)
-    force = NormalContact(material, radius).block(t, delta)
+    force = make_contact(material, radius).block(t, delta)
     return RampHold(t, delta, force, t_ramp)

@@ -13,6 +13,10 @@ exact O(N) recursion, and the paper's no-adhesion cutoff applied on the output o
 The prefactor is the paper's (textbook plate-sphere Hertz would be twice it); the paper's
 fitted moduli are defined through it, so it is used everywhere (docs/decisions/0002).
 Contact starts with no history; a jump of x at the first sample loads instantaneously.
+Each contact starts fresh (physics.md section 1): where the overlap returns to <= 0 the
+hereditary state is discarded, so the next contact meets no hidden force. Carrying the state
+across separations is a named sensitivity option, ``carry_history`` (docs/decisions/0140).
+Simulators and the model obtain their contact through :func:`make_contact`.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Literal, Protocol, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -210,13 +215,36 @@ def hereditary(
     return out
 
 
+def _contact_runs(inside: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(start, stop) of each run of True in ``inside``."""
+    edges = np.flatnonzero(inside[1:] != inside[:-1]) + 1
+    bounds = [0, *edges.tolist(), inside.size]
+    first = bool(inside[0])
+    return [(a, b) for k, (a, b) in enumerate(itertools.pairwise(bounds)) if (k % 2 == 0) == first]
+
+
+def hereditary_contacts(
+    dt: FloatArray, x: FloatArray, tau: float, carry_history: bool = False
+) -> FloatArray:
+    """:func:`hereditary` over a record that may separate: each run of x > 0 starts with no
+    history (the apart sample before it), and h = 0 where x = 0, unless ``carry_history``."""
+    if carry_history or x.size == 0 or bool(x.all()):
+        return hereditary(dt, x, tau)
+    out = np.zeros(x.size)
+    if x.any():
+        for a, b in _contact_runs(x > 0):
+            out[a:b] = hereditary(dt[a:b], x[a:b], tau)
+    return out
+
+
 @dataclass
 class NormalContact:
     """Streaming normal-force state of one contact, stepped with its owner's time steps.
 
     A simulator calls :meth:`step` (one sample) or :meth:`block` (arrays) with increasing
-    times; variable steps are allowed. History persists while the bodies are apart (x = 0,
-    dx = 0: it only decays).
+    times; variable steps are allowed. Where the overlap is <= 0 the bodies are apart: the
+    hereditary state is discarded there (a fresh contact follows), unless ``carry_history``,
+    in which case it persists and only decays (x = 0, dx = 0).
     """
 
     material: Material
@@ -224,6 +252,7 @@ class NormalContact:
     t_last: float | None = None
     x_last: float = 0.0
     h: FloatArray = field(default_factory=lambda: np.zeros(0))
+    carry_history: bool = field(default=False, kw_only=True)
 
     def __post_init__(self) -> None:
         self.k = hertz_prefactor(self.radius, self.material.nu)
@@ -240,6 +269,10 @@ class NormalContact:
             if dt < -_TIME_JITTER * max(1.0, abs(t)):
                 raise ValueError(f"time went backwards: {t} s after {self.t_last} s")
             dt = 0.0
+        if x == 0.0 and not self.carry_history:  # apart: the contact's history ends here
+            self.h[:] = 0.0
+            self.t_last, self.x_last = t, 0.0
+            return 0.0
         dx = x - self.x_last
         hat = 0.0
         for i in range(self.h.size):
@@ -270,6 +303,15 @@ class NormalContact:
             raise ValueError("t and delta must be 1-D arrays of the same length")
         if t.size == 0:
             return np.empty(0), np.empty(0)
+        if not self.carry_history and not x.any():  # apart throughout: no contact, no history
+            last = float(t[0]) if self.t_last is None else self.t_last
+            tol = _TIME_JITTER * max(1.0, abs(float(t[-1])))
+            if float(t[0]) - last < -tol or (
+                    t.size > 1 and float(np.min(t[1:] - t[:-1])) < -tol):
+                raise ValueError("times must not decrease")
+            self.h[:] = 0.0
+            self.t_last, self.x_last = float(t[-1]), 0.0
+            return x, np.zeros(t.size)
         dt = _diff_from(t, t[0] if self.t_last is None else self.t_last)
         if np.any(dt < 0):
             # Round-off between clocks computed two ways (a few ulps) is not a time reversal.
@@ -291,6 +333,14 @@ class NormalContact:
         if n == 0:
             return np.empty(0)
         fresh = self.t_last is None
+        t_end = (0.0 if fresh else float(self.t_last or 0.0)) + dt * (n - 1 if fresh else n)
+        if not self.carry_history and not bool(x.all()):  # separations: per-contact runs
+            steps = np.full(n, dt)
+            if fresh:
+                steps[0] = 0.0
+            elastic, hat = self._advance(steps, x, t_end)
+            total_ = elastic + hat
+            return np.maximum(total_, 0.0, out=total_)
         total = x * (self.k * self.material.g_e)
         for i in range(self.h.size):
             tau, g = float(self._taus[i]), float(self._gs[i])
@@ -308,32 +358,112 @@ class NormalContact:
             self.h[i] = hi[-1] / scale
             if g > 0:
                 total += hi
-        self.t_last = (0.0 if fresh else float(self.t_last or 0.0)) + dt * (n - 1 if fresh else n)
+        self.t_last = t_end
         self.x_last = float(x[-1])
         return np.maximum(total, 0.0, out=total)
+
+    def reset(self) -> None:
+        """Discard the hereditary state: the next sample starts a fresh contact."""
+        self.h[:] = 0.0
+        self.x_last = 0.0
+
+    def snapshot(self) -> tuple[float | None, float, FloatArray]:
+        """The state, for :meth:`restore` (a simulator's non-committing look-ahead)."""
+        return self.t_last, self.x_last, self.h.copy()
+
+    def restore(self, state: object) -> None:
+        """Return to a state taken by :meth:`snapshot`."""
+        t_last, x_last, h = cast(tuple[float | None, float, FloatArray], state)
+        self.t_last, self.x_last, self.h = t_last, x_last, h.copy()
 
     def _advance(
         self, dt: FloatArray, x: FloatArray, t_end: float
     ) -> tuple[FloatArray, FloatArray]:
         hat = np.zeros(x.size)
-        for i in range(self.h.size):
-            hi = hereditary(dt, x, float(self._taus[i]), self.x_last, float(self.h[i]))
-            hat += self._gs[i] * hi
-            self.h[i] = hi[-1]
+        if self.h.size == 0:
+            pass
+        elif self.carry_history or bool(x.all()):
+            self._hereditary_run(dt, x, hat, self.x_last)
+        else:
+            # Apart samples (x = 0) end a contact: hat is 0 there and the next contact starts
+            # from no history, so only the runs in contact need the recursion.
+            runs = _contact_runs(x > 0) if x.any() else []
+            for a, b in runs:
+                if a > 0:
+                    self.h[:] = 0.0
+                self._hereditary_run(dt[a:b], x[a:b], hat[a:b], self.x_last if a == 0 else 0.0)
+            if x[-1] == 0.0:
+                self.h[:] = 0.0
         self.t_last, self.x_last = t_end, float(x[-1])
         hat *= self.k
         return (self.k * self.material.g_e) * x, hat
 
+    def _hereditary_run(self, dt: FloatArray, x: FloatArray, out: FloatArray,
+                        x_prev: float) -> None:
+        """Add sum_i G_i h_i over one run of samples to ``out``, advancing ``self.h``."""
+        for i in range(self.h.size):
+            hi = hereditary(dt, x, float(self._taus[i]), x_prev, float(self.h[i]))
+            out += self._gs[i] * hi
+            self.h[i] = hi[-1]
+
+
+Unloading = Literal["cutoff", "mdr"]
+UNLOADING_MODELS: tuple[str, ...] = ("cutoff", "mdr")
+
+
+class ContactModel(Protocol):
+    """The streaming contract every normal-contact model meets (simulators, the model fit)."""
+
+    t_last: float | None
+
+    def step(self, t: float, delta: float) -> float: ...
+
+    def block(self, t: ArrayLike, delta: ArrayLike) -> FloatArray: ...
+
+    def block_uniform(self, delta: ArrayLike, dt: float) -> FloatArray: ...
+
+    def reset(self) -> None: ...
+
+    def snapshot(self) -> object: ...
+
+    def restore(self, state: object) -> None: ...
+
+
+def make_contact(
+    material: Material,
+    radius: float,
+    unloading: Unloading | str = "cutoff",
+    *,
+    carry_history: bool = False,
+) -> ContactModel:
+    """The one place a normal contact is made (simulators, the model, ``gelrig model``).
+
+    ``unloading``: ``"cutoff"`` is the paper's hereditary model with the no-adhesion cutoff;
+    ``"mdr"`` is the method of dimensionality reduction with viscoelastic elements
+    (physics.md 1b, ``instrument/mdr.py``, docs/decisions/0150).
+    ``carry_history`` keeps the hereditary state across separations (a sensitivity option,
+    docs/decisions/0140); the default starts each contact fresh.
+    """
+    if unloading == "cutoff":
+        return NormalContact(material, radius, carry_history=carry_history)
+    if unloading == "mdr":
+        from instrument.mdr import MdrContact  # imports this module: import at call time
+
+        return MdrContact(material, radius, carry_history=carry_history)
+    raise ConfigError("unloading", unloading, f"allowed: {', '.join(UNLOADING_MODELS)}")
+
 
 def normal_force(
-    t: ArrayLike, delta: ArrayLike, material: Material, radius: float
+    t: ArrayLike, delta: ArrayLike, material: Material, radius: float,
+    *, carry_history: bool = False,
 ) -> FloatArray:
     """Batch F_perp (N) of a fresh contact over whole arrays of time (s) and overlap (m)."""
-    return NormalContact(material, radius).block(t, delta)
+    return NormalContact(material, radius, carry_history=carry_history).block(t, delta)
 
 
 def normal_force_uniform(
-    delta: ArrayLike, dt: float, material: Material, radius: float
+    delta: ArrayLike, dt: float, material: Material, radius: float,
+    *, carry_history: bool = False,
 ) -> FloatArray:
     """Batch F_perp (N) of a fresh contact sampled every ``dt`` (s) from t = 0."""
-    return NormalContact(material, radius).block_uniform(delta, dt)
+    return NormalContact(material, radius, carry_history=carry_history).block_uniform(delta, dt)

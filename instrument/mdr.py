@@ -82,7 +82,7 @@ class MdrBlock:
 
 @dataclass(frozen=True)
 class MdrState:
-    """Saved state of an :class:`MdrContact` (see :meth:`MdrContact.save`)."""
+    """Saved state of an :class:`MdrContact` (see :meth:`MdrContact.snapshot`)."""
 
     t_last: float | None
     delta_last: float
@@ -107,6 +107,8 @@ class MdrContact:
         nu: float | None = None,
         elements: int = ELEMENTS,
         delta_max: float = DELTA_MAX,
+        *,
+        carry_history: bool = True,
     ) -> None:
         if not (math.isfinite(radius) and radius > 0):
             raise ConfigError("radius", radius, "must be > 0 m")
@@ -120,6 +122,7 @@ class MdrContact:
         self.material = material
         self.radius = radius
         self.nu = nu
+        self.carry_history = carry_history
         terms = [t for t in material.relax if t.g > 0]
         self._ke = material.g_e / (1.0 - nu)
         self._k = np.array([t.g for t in terms], dtype=float) / (1.0 - nu)
@@ -183,13 +186,20 @@ class MdrContact:
         self._cached: tuple[FloatArray, FloatArray, FloatArray] = (
             np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 0)))
 
-    def save(self) -> MdrState:
+    def _apart(self, t: float, delta: float) -> None:
+        """A sample at overlap <= 0 without carried history: the contact ends here."""
+        if self._reach:
+            self.reset()
+        self.t_last, self.delta_last = t, delta
+
+    def snapshot(self) -> MdrState:
         """A copy of the whole state, for a simulator that peeks ahead and comes back."""
         return MdrState(self.t_last, self.delta_last, self._reach, self._contact.copy(),
                         self._w.copy(), self._e.copy())
 
-    def restore(self, state: MdrState) -> None:
-        """Return to a state taken by :meth:`save` (of this contact)."""
+    def restore(self, state: object) -> None:
+        """Return to a state taken by :meth:`snapshot` (of this contact)."""
+        assert isinstance(state, MdrState)
         self.t_last, self.delta_last, self._reach = state.t_last, state.delta_last, state.reach
         self._contact, self._w, self._e = (state.contact.copy(), state.w.copy(),
                                            state.e.copy())
@@ -233,6 +243,9 @@ class MdrContact:
     def step(self, t: float, delta: float) -> float:
         """Advance to time ``t`` (s) at overlap ``delta`` (m); return F_perp (N)."""
         dt = self._dt(t)
+        if delta <= 0 and not self.carry_history:
+            self._apart(float(t), float(delta))
+            return 0.0
         self._fit(delta)
         force = self._step(dt, float(delta))
         self.t_last, self.delta_last = float(t), float(delta)
@@ -352,6 +365,25 @@ class MdrContact:
             raise ValueError("t and delta must be 1-D arrays of the same length")
         if t.size == 0:
             return MdrBlock(np.empty(0), np.empty(0))
+        apart = d <= 0
+        if self.carry_history or not apart.any():
+            return self._contact_block(t, d)
+        # fresh contacts: each run of samples in contact starts from a discarded state
+        self._dt(float(t[0]))  # times must not go backwards across the split either
+        force, radius = np.zeros(t.size), np.zeros(t.size)
+        edges = np.flatnonzero(np.diff(apart.astype(np.int8)))  # last sample of each run
+        starts = np.concatenate(([0], edges + 1))
+        ends = np.concatenate((edges + 1, [t.size]))
+        for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+            if apart[a]:
+                self._apart(float(t[b - 1]), float(d[b - 1]))
+            else:
+                part = self._contact_block(t[a:b], d[a:b])
+                force[a:b], radius[a:b] = part.force, part.radius
+        return MdrBlock(force, radius)
+
+    def _contact_block(self, t: FloatArray, d: FloatArray) -> MdrBlock:
+        """The batch path over samples (any overlap) continuing the current state."""
         dt = _diff_from(t, t[0] if self.t_last is None else self.t_last)
         if np.any(dt < 0):
             if np.any(dt < -_TIME_JITTER * max(1.0, abs(float(t[-1])))):

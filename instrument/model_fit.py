@@ -7,17 +7,21 @@ section 2, docs/decisions/0030):
 - the recorded arm angle and gap of every shear step, in time order, give the overlap
   ``delta = R1 + R2 - hypot(h, x)`` with ``x = wrap(angle - lower_angle) * L`` and
   ``h = R1 + R2 - (touch_gap - gap)``;
-- one :class:`instrument.contact.NormalContact` runs through that whole trajectory, so every
-  pass meets the history the earlier ones (and the contact search) left, as on the rig;
+- one contact (:func:`instrument.contact.make_contact`) runs through that whole trajectory;
+  each pass is a fresh contact (the history ends where the overlap returns to <= 0), unless
+  ``FitSetup.carry_history`` (a sensitivity option, docs/decisions/0140);
 - ``F_h`` and ``F_v`` follow from :func:`instrument.sliding.resolve_forces` in the frame of
   each pass's motion, and are compared with the baseline-corrected measured forces of
   :mod:`instrument.shear_analysis`, each weighted by its noise.
 
 Fitted: ``G_e``, ``G_i`` and ``tau_i`` (as logarithms, so they stay positive), ``mu``, and, by
 default, the touch gap and the lower sphere's angle, which the contact search only estimates
-(it supplies their start values). The radii and the arm are taken as given. Stretches where
-the spheres are far apart are reduced to their end points: there ``x = 0`` and the recursion
-only decays the history, which two samples represent exactly.
+(it supplies their start values). With ``FitSetup.anisotropic`` (the paper's fit: F_h with
+G_l = 5 G_e, F_v with 4 G_e) the amplitudes are fitted separately for the two forces, reported
+as ``G_i_h`` and ``G_i_v``; G_e, the tau_i and mu stay shared. The radii and the arm are
+taken as given. Stretches where the spheres are far apart are reduced to their end points:
+there ``x = 0`` and the recursion only resets (or, carried, decays) the history, which two
+samples represent exactly.
 """
 
 from __future__ import annotations
@@ -33,14 +37,15 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares, nnls
 
 from instrument.contact import (
+    UNLOADING_MODELS,
     FloatArray,
     Material,
-    NormalContact,
     RelaxationTerm,
     effective_radius,
-    hereditary,
+    hereditary_contacts,
     hertz_power,
     hertz_prefactor,
+    make_contact,
 )
 from instrument.errors import ConfigError
 from instrument.shear_analysis import BoolArray, PassResult, pass_forces, split_passes
@@ -89,7 +94,9 @@ class Trajectory:
 
 @dataclass(frozen=True)
 class FitSetup:
-    """What the fit takes as given: radii (m), arm (m), Poisson ratio, number of terms."""
+    """What the fit takes as given: radii (m), arm (m), Poisson ratio, number of terms, and
+    the model's options: separate F_h and F_v amplitudes (``anisotropic``), the unloading
+    model, and whether the history is carried across separations (off: fresh contacts)."""
 
     r1: float
     r2: float
@@ -98,10 +105,16 @@ class FitSetup:
     terms: int = 1
     fit_geometry: bool = True
     max_points_per_pass: int = MAX_POINTS_PER_PASS
+    anisotropic: bool = False
+    unloading: str = "cutoff"
+    carry_history: bool = False
 
     def __post_init__(self) -> None:
         if self.terms not in (1, 2):
             raise ConfigError("terms", self.terms, "allowed: 1 or 2")
+        if self.unloading not in UNLOADING_MODELS:
+            raise ConfigError("unloading", self.unloading,
+                              f"allowed: {', '.join(UNLOADING_MODELS)}")
 
     @property
     def s(self) -> float:
@@ -138,6 +151,8 @@ class ModelFit:
     evaluations: int
     seconds: float
     extra: dict[str, object] = field(default_factory=dict)
+    #: The material F_v was fitted with (anisotropic fits); None: ``material`` for both.
+    material_vertical: Material | None = None
 
     def estimate(self, name: str) -> Estimate:
         for e in self.estimates:
@@ -182,6 +197,16 @@ class _Problem:
             touch, angle = self.fixed_touch, self.fixed_angle
         return Material(g_e, relax, self.setup.nu), mu, touch, angle
 
+    def vertical(self, q: FloatArray, material: Material) -> Material | None:
+        """The F_v material of an anisotropic fit (its amplitudes close ``q``), else None."""
+        if not self.setup.anisotropic:
+            return None
+        terms = self.setup.terms
+        first = q.size - terms
+        return Material(material.g_e, tuple(
+            RelaxationTerm(math.exp(q[first + i]), term.tau)
+            for i, term in enumerate(material.relax)), material.nu)
+
     def geometry(self, touch: float, lower: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(x, h, delta) over the trajectory."""
         s = self.setup.s
@@ -194,11 +219,20 @@ class _Problem:
         self.evaluations += 1
         material, mu, touch, lower = self.split(q)
         x, h, delta = self.geometry(touch, lower)
-        radius = effective_radius(self.setup.r1, self.setup.r2)
-        f_perp = NormalContact(material, radius).block(self.t, delta)
         i = self.points.astype(np.intp)
         psi = -self.direction * x[i] / h[i]
-        return resolve_forces(f_perp[i], psi, 1.0, mu)
+        f_perp = self._f_perp(material, delta)[i]
+        f_h, f_v = resolve_forces(f_perp, psi, 1.0, mu)
+        vertical = self.vertical(q, material)
+        if vertical is not None:
+            _, f_v = resolve_forces(self._f_perp(vertical, delta)[i], psi, 1.0, mu)
+        return f_h, f_v
+
+    def _f_perp(self, material: Material, delta: FloatArray) -> FloatArray:
+        setup = self.setup
+        contact = make_contact(material, effective_radius(setup.r1, setup.r2), setup.unloading,
+                               carry_history=setup.carry_history)
+        return contact.block(self.t, delta)
 
     def residual(self, q: FloatArray) -> FloatArray:
         f_h, f_v = self.forces(q)
@@ -274,7 +308,8 @@ def _start_moduli(
                           "too few samples in contact at the start geometry")
     dt = np.diff(problem.t, prepend=problem.t[0])
     taus = np.geomspace(10.0, 1e5, 13)
-    cached = {float(tau): hereditary(dt, xp, float(tau))[i][use] for tau in taus}
+    cached = {float(tau): hereditary_contacts(dt, xp, float(tau), setup.carry_history)[i][use]
+              for tau in taus}
     y = problem.f_v[use]
     base = (k * xp[i] * resolve)[use]
     best: tuple[float, list[float]] | None = None
@@ -349,6 +384,11 @@ def fit_ladder(
         lower += [touch_gap - 0.5 * KEEP_GAP, lower_angle - 0.5 * KEEP_GAP / setup.arm]
         upper += [touch_gap + 0.5 * KEEP_GAP, lower_angle + 0.5 * KEEP_GAP / setup.arm]
         scale += [1e-5, 1e-5 / setup.arm]
+    if setup.anisotropic:  # the F_v amplitudes start where the F_h ones do
+        q0 += [math.log(moduli[1 + 2 * k]) for k in range(setup.terms)]
+        lower += [-np.inf] * setup.terms
+        upper += [np.inf] * setup.terms
+        scale += [0.1] * setup.terms
     result = least_squares(problem.residual, np.array(q0), bounds=(lower, upper),
                            x_scale=np.array(scale), method="trf")
     q = result.x
@@ -368,6 +408,7 @@ def fit_ladder(
     f_h_model, f_v_model = problem.forces(q)
     return ModelFit(
         material=material, mu=mu, touch_gap=touch, lower_angle=angle,
+        material_vertical=problem.vertical(q, material),
         estimates=tuple(estimates),
         rms_h=float(np.sqrt(np.mean((f_h_model - f_h) ** 2))),
         rms_v=float(np.sqrt(np.mean((f_v_model - f_v) ** 2))),
@@ -392,8 +433,11 @@ def _estimates(q: FloatArray, err: FloatArray, setup: FitSetup) -> list[Estimate
                             v + Z95 * float(err[i]), unit))
 
     log_param("G_e", 0, "Pa")
+    suffix = "_h" if setup.anisotropic else ""
     for k in range(setup.terms):
-        log_param(f"G_{k + 1}", 1 + 2 * k, "Pa")
+        log_param(f"G_{k + 1}{suffix}", 1 + 2 * k, "Pa")
+        if setup.anisotropic:
+            log_param(f"G_{k + 1}_v", q.size - setup.terms + k, "Pa")
         log_param(f"tau_{k + 1}", 2 + 2 * k, "s")
     m = 1 + 2 * setup.terms
     lin_param("mu", m, "1")
@@ -412,10 +456,16 @@ def model_forces(
     x = (np.remainder(traj.angle - fit.lower_angle + math.pi, 2 * math.pi) - math.pi) * setup.arm
     h = s - (fit.touch_gap - traj.gap)
     delta = s - np.hypot(h, x)
-    f_perp = NormalContact(fit.material, effective_radius(setup.r1, setup.r2)).block(traj.t,
-                                                                                     delta)
+    radius = effective_radius(setup.r1, setup.r2)
+
+    def f_perp_of(material: Material) -> FloatArray:
+        return make_contact(material, radius, setup.unloading,
+                            carry_history=setup.carry_history).block(traj.t, delta)
+
+    f_perp = f_perp_of(fit.material)
+    f_perp_v = f_perp if fit.material_vertical is None else f_perp_of(fit.material_vertical)
     frame = np.where(traj.direction == 0, 1.0, traj.direction)
     mu = np.where(traj.direction == 0, 0.0, fit.mu)
     psi = -frame * x / h
     d = np.hypot(1.0, psi)
-    return f_perp * (psi + mu) / d, f_perp * (1.0 - mu * psi) / d
+    return f_perp * (psi + mu) / d, f_perp_v * (1.0 - mu * psi) / d

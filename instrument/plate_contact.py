@@ -10,9 +10,10 @@ with ``direction = +1`` when an increasing stage position moves the plate into t
 (the default) and ``-1`` for a stage mounted the other way. ``first_touch`` is the stage
 position at which the plate meets the sphere's top: the value a contact search must find.
 
-One :class:`~instrument.contact.NormalContact` carries the hereditary history for the whole
-life of the object, so queries must come in increasing time; gaps between queries are filled
-with internal steps so the history still follows the plate.
+One contact (:func:`~instrument.contact.make_contact`) carries the hereditary history for the
+whole life of the object (each contact fresh: a retracted plate leaves none), so queries must
+come in increasing time; gaps between queries are filled with internal steps so the history
+still follows the plate.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.contact import FloatArray, Material, NormalContact
+from instrument.contact import FloatArray, Material, make_contact
 from instrument.errors import ConfigError
 
 #: Plate position (m) as a function of time (s).
@@ -67,7 +68,7 @@ class PlateSphereContact:
         self.max_gap = float(max_gap)
         self._position = plate_position
         self._vectorized = vectorized
-        self._contact = NormalContact(material, self.sphere_radius)
+        self._contact = make_contact(material, self.sphere_radius)
 
     @property
     def t_last(self) -> float | None:

@@ -8,12 +8,17 @@ Definitions (docs/decisions/0030):
   before contact, so the bearing drag and any normal-force offset drop out.
 - Contact: a sample is in contact when ``|F_h|`` or ``F_v`` exceeds :data:`K_SIGMA` times its
   noise (:func:`instrument.noise.robust_sigma` of the baseline window). The deformed contact length
-  ``l_c`` is the travel from the first such sample to the last (the crossings are
+  ``l_c`` is the travel from the first touch (below) to the last such sample (the crossing
   interpolated linearly between samples).
 - ``l_g`` (the paper's construction): the clockwise and anticlockwise passes at the same
   overlap and speed each start contact on opposite sides of the lower sphere, before any
   viscous lag, so ``l_g`` is the distance between the two first-contact positions and the
-  centre of ``l_g`` is their midpoint (lab-frame ``theta``).
+  centre of ``l_g`` is their midpoint (lab-frame ``theta``). The first-contact position of a
+  pass (``touch``) is where its rise extrapolates to zero force: at first touch
+  ``F_h ~ (travel)^1.5`` (Hertz, before any relaxation), so ``F_h^(2/3)`` is a straight line
+  in the travel, fitted between :data:`ONSET_LO` and :data:`ONSET_HI` sigma; the threshold
+  crossing (``contact_start``) lies a noise-dependent distance later and is used when the fit
+  fails (docs/decisions/0141).
 - ``mu``: ``F_h / F_v`` at the centre of ``l_g``, each force from a second-degree polynomial
   fitted to the 20 samples either side of the centre (there ``F_h = mu F_perp`` and
   ``F_v = F_perp``); the estimate per (overlap, speed) is the mean of the C and AC passes,
@@ -44,6 +49,9 @@ BASELINE_FRACTION = 0.1
 K_SIGMA = 5.0
 #: Below-threshold samples that may interrupt one contact (near the F_h zero crossing).
 MERGE_GAP = 5
+#: F_h range (in units of its noise) of the first-touch line fit of F_h^(2/3) on the travel.
+ONSET_LO = 3.0
+ONSET_HI = 100.0
 #: Samples either side of the centre of l_g for the friction polynomial (the paper's 20).
 CENTRE_POINTS = 20
 #: A pass recorded over less than this fraction of the planned travel is truncated.
@@ -168,6 +176,13 @@ class PassResult:
     f_h_centre: float = math.nan
     f_v_centre: float = math.nan
     mu: float = math.nan
+    #: First-contact position (m, lab theta) extrapolated to zero force; NaN if not found.
+    touch: float = math.nan
+
+    @property
+    def first_contact(self) -> float:
+        """Where contact began (m, lab theta): ``touch``, else the threshold crossing."""
+        return self.touch if math.isfinite(self.touch) else self.contact_start
 
     @property
     def ratio(self) -> float:
@@ -184,7 +199,7 @@ class PassResult:
             "f_h_trough_N": self.f_h_trough, "f_v_peak_N": self.f_v_peak,
             "theta_zero_m": self.theta_zero, "zero_offset_m": self.zero_offset,
             "centre_m": self.centre, "f_h_centre_N": self.f_h_centre,
-            "f_v_centre_N": self.f_v_centre, "mu": self.mu,
+            "f_v_centre_N": self.f_v_centre, "mu": self.mu, "touch_m": self.touch,
         }
 
 
@@ -212,6 +227,31 @@ def contact_span(
     return start, end, i0, i1
 
 
+def first_touch(f: PassForces, direction: float, i0: int, i1: int) -> float:
+    """Lab theta (m) where F_h^(2/3), linear in the travel at first touch, reaches zero.
+
+    Fitted over the samples from just before the threshold crossing ``i0`` to where F_h
+    first exceeds ONSET_HI sigma, keeping those above ONSET_LO sigma; NaN when too few
+    samples or the line does not rise.
+    """
+    sig = f.f_h / f.noise_h
+    lo = max(0, i0 - 2 * MERGE_GAP)
+    strong = np.flatnonzero(sig[i0:i1 + 1] > ONSET_HI)
+    hi = i0 + int(strong[0]) if strong.size else i1
+    w = np.arange(lo, hi + 1)
+    w = w[(sig[w] > ONSET_LO) & f.moving[w]]
+    if w.size < 3:
+        return math.nan
+    travel = direction * f.theta[w]
+    slope, icpt = np.polyfit(travel, f.f_h[w] ** (2.0 / 3.0), 1)
+    if not slope > 0:
+        return math.nan
+    touch = direction * (-icpt / slope)
+    # The extrapolation stays near the crossing (a few samples' travel), else it failed.
+    reach = 4.0 * abs(float(f.theta[hi] - f.theta[lo])) + 1e-9
+    return float(touch) if abs(touch - float(f.theta[i0])) < reach else math.nan
+
+
 def analyse_pass(p: RecordedPass, arm: float, k_sigma: float = K_SIGMA) -> PassResult:
     """Contact span, l_c, F_h peak and trough, zero crossing of one pass (no pairing)."""
     f = pass_forces(p, arm)
@@ -236,13 +276,15 @@ def analyse_pass(p: RecordedPass, arm: float, k_sigma: float = K_SIGMA) -> PassR
         if changes.size:
             j = i0 + ip + int(changes[-1]) + 1
             theta_zero = _crossing(f.theta, f.f_h, j, 0.0)
+    touch = first_touch(f, p.direction, i0, i1)
     return PassResult(
         index=p.index, direction=p.direction, speed=p.speed, overlap=p.overlap,
-        contact_start=start, contact_end=end, l_c=abs(end - start),
+        contact_start=start, contact_end=end,
+        l_c=abs(end - (touch if math.isfinite(touch) else start)),
         f_h_peak=float(seg_h[ip]), theta_peak=float(f.theta[i0 + ip]),
         f_h_trough=float(seg_h[it]), theta_trough=float(f.theta[i0 + it]),
         theta_zero=theta_zero, f_v_peak=float(np.max(f.f_v[inside])),
-        noise_h=f.noise_h, noise_v=f.noise_v, travel=travel,
+        noise_h=f.noise_h, noise_v=f.noise_v, travel=travel, touch=touch,
     )
 
 
@@ -286,8 +328,8 @@ def pair_passes(
         if cw is None or acw is None:
             out.append(r)
             continue
-        l_g = acw.contact_start - cw.contact_start
-        centre = 0.5 * (acw.contact_start + cw.contact_start)
+        l_g = acw.first_contact - cw.first_contact
+        centre = 0.5 * (acw.first_contact + cw.first_contact)
         f_h_c, f_v_c = friction_at_centre(by_index[r.index], arm, centre, points)
         offset = r.direction * (r.theta_zero - centre)
         mu = f_h_c / f_v_c if f_v_c > 0 else math.nan

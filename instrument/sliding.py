@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.contact import FloatArray, Material, NormalContact, effective_radius
+from instrument.contact import FloatArray, Material, effective_radius, make_contact
 from instrument.errors import ConfigError
 
 
@@ -120,10 +120,15 @@ def shear_pass(
     mu: float = 0.0,
     dt: float | None = None,
     margin: float = 0.0,
+    material_vertical: Material | None = None,
+    unloading: str = "cutoff",
 ) -> ShearPass:
     """Model one pass at constant ``speed`` from psi0 + margin to -(psi0 + margin).
 
-    ``dt`` defaults to the time for 1/2000 of the travel. The contact has no prior history.
+    ``dt`` defaults to the time for 1/2000 of the travel. The contact has no prior history
+    (each pass is a fresh contact). ``material_vertical`` gives F_v its own modulus (the
+    paper's anisotropy; ``f_perp`` stays the horizontal material's); ``unloading`` picks the
+    contact model (:func:`instrument.contact.make_contact`).
     """
     if not (math.isfinite(speed) and speed > 0):
         raise ConfigError("speed", speed, "must be > 0 m/s")
@@ -139,6 +144,9 @@ def shear_pass(
     t = np.arange(n, dtype=float) * dt
     psi = start - speed * t
     delta = geometry.overlap(psi)
-    f_perp = NormalContact(material, geometry.radius).block(t, delta)
+    f_perp = make_contact(material, geometry.radius, unloading).block(t, delta)
     f_h, f_v = resolve_forces(f_perp, psi, geometry.h, mu)
+    if material_vertical is not None:
+        f_perp_v = make_contact(material_vertical, geometry.radius, unloading).block(t, delta)
+        f_v = resolve_forces(f_perp_v, psi, geometry.h, mu)[1]
     return ShearPass(t, np.asarray(psi, dtype=float), delta, f_perp, f_h, f_v)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
-from instrument.contact import Material, RelaxationTerm
+from instrument.contact import UNLOADING_MODELS, Material, RelaxationTerm
 from instrument.daq import Usb6001Config
 from instrument.errors import ConfigError
 from instrument.fields import Choice, Config, Field, Text, Where, param, read_table, read_toml
@@ -66,29 +66,46 @@ class RheometerEntry(Connection):
     backend: str = "@py"
 
 
-def _material(table: Mapping[str, Any], where: Where) -> Material | None:
-    """G_e, nu and ``relax = [["20 kPa", "2000 s"], ...]`` from a simulator table."""
+def _material(table: Mapping[str, Any], where: Where, relax_key: str = "relax"
+              ) -> Material | None:
+    """G_e, nu and ``relax = [["20 kPa", "2000 s"], ...]`` from a simulator table.
+
+    ``relax_key = "relax_vertical"`` reads the terms F_v is computed with (the paper's
+    anisotropy: same G_e and nu, its own G_l); None when that key is absent.
+    """
+    if relax_key != "relax" and relax_key not in table:
+        return None
     if "g_e" not in table:
+        if relax_key != "relax":
+            raise where.error(relax_key, table[relax_key], "needs g_e (and relax) beside it")
         return None
     values = read_table({k: table[k] for k in ("g_e", "nu") if k in table}, _MATERIAL, where)
-    raw = table.get("relax", [])
+    raw = table.get(relax_key, [])
     if not isinstance(raw, list):
-        raise where.error("relax", raw, "a list of [G, tau] pairs")
+        raise where.error(relax_key, raw, "a list of [G, tau] pairs")
     terms = []
     for i, pair in enumerate(raw):
         if not (isinstance(pair, list) and len(pair) == 2):
-            raise where.error(f"relax[{i}]", pair, "a pair [G, tau]")
-        g = _RELAX_G.parse(pair[0], where.sub(f"relax[{i}]"))
-        tau = _RELAX_TAU.parse(pair[1], where.sub(f"relax[{i}]"))
+            raise where.error(f"{relax_key}[{i}]", pair, "a pair [G, tau]")
+        g = _RELAX_G.parse(pair[0], where.sub(f"{relax_key}[{i}]"))
+        tau = _RELAX_TAU.parse(pair[1], where.sub(f"{relax_key}[{i}]"))
         terms.append(RelaxationTerm(g, tau))
     return Material(values["g_e"], tuple(terms), values["nu"])
+
+
+def _flag(table: Mapping[str, Any], key: str, where: Where) -> bool:
+    """A TOML boolean (``key = true``), False when absent."""
+    value = table.get(key, False)
+    if not isinstance(value, bool):
+        raise where.error(key, value, "allowed: true or false")
+    return value
 
 
 _MATERIAL = {"g_e": Field("g_e", "Pa", None, 0.0, 1e9, lo_open=True),
              "nu": Field("nu", "", 0.5, 0.0, 0.999)}
 _RELAX_G = Field("G", "Pa", None, 0.0, 1e9)
 _RELAX_TAU = Field("tau", "s", None, 0.0, 1e9, lo_open=True)
-_MATERIAL_KEYS = ("g_e", "nu", "relax")
+_MATERIAL_KEYS = ("g_e", "nu", "relax", "relax_vertical", "carry_history")
 
 
 @dataclass(frozen=True)
@@ -121,7 +138,15 @@ class ShearTruth(Config):
     lower_angle: float = param(Field("lower_angle", "rad", 0.8, -6.3, 6.3))
     touch_gap: float = param(Field("touch_gap", "m", 3e-3, 0.0, 0.05, display="mm"))
     seed: float = param(Field("seed", "", 0, 0, 2**31, integer=True))
+    unloading: str = param(Choice("unloading", UNLOADING_MODELS, "cutoff",
+                                  help="normal contact on unloading: the paper's cutoff, or "
+                                       "MDR (physics.md 1b)"))
     material: Material | None = None
+    #: ``relax_vertical``: the material F_v is computed with (the paper's anisotropy).
+    material_vertical: Material | None = None
+    #: ``carry_history = true``: keep the hereditary state across separations
+    #: (a sensitivity option; each pass is a fresh contact otherwise, docs/decisions/0140).
+    carry_history: bool = False
 
 
 @dataclass(frozen=True)
@@ -218,6 +243,13 @@ def _truth(cls: type[CompressionTruth] | type[ShearTruth], table: dict[str, Any]
            ) -> Any:
     where = Where("simulator", source)
     values = read_table(table, cls.specs(), where, ignore=_MATERIAL_KEYS)
+    if cls is ShearTruth:
+        values["material_vertical"] = _material(table, where, "relax_vertical")
+        values["carry_history"] = _flag(table, "carry_history", where)
+    else:
+        for key in ("relax_vertical", "carry_history"):
+            if key in table:
+                raise where.error(key, table[key], "a shear rig's option; not for compression")
     return cls(**values, material=_material(table, where))
 
 

@@ -6,7 +6,7 @@ import argparse
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from gelrig.commands._args import add_material, quantity
+from gelrig.commands._args import add_material, quantity, relax_term
 from instrument.errors import ConfigError
 
 if TYPE_CHECKING:  # the model is imported when the command runs
@@ -46,6 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="sample step (s; default: travel / 2000 samples)")
     shear.add_argument("--margin", type=quantity("m", strict=False), default=0.0,
                        help="travel before first touch and after psi0 on the far side (m)")
+    shear.add_argument("--relax-vertical", action="append", default=[], type=relax_term,
+                       metavar="G:TAU", help="relaxation term of the modulus F_v is computed "
+                       "with (the paper's anisotropy, e.g. 16e3:2000); repeatable; default: "
+                       "--relax")
     add_unloading(shear)
     shear.add_argument("--out", required=True, help="CSV: t_s,psi_m,delta_m,f_perp_N,f_h_N,f_v_N")
     shear.set_defaults(handler=run_shear)
@@ -131,13 +135,14 @@ def run_shear(args: argparse.Namespace) -> int:
     if args.dt is not None:
         travel = 2 * (geometry.psi0 + args.margin)
         check_samples(travel / args.speed, args.dt, "pass")
-    sp = shear_pass(geometry, _material(args), args.speed, args.mu, args.dt, args.margin)
-    if args.unloading == "mdr":
-        from instrument.sliding import resolve_forces
+    material = _material(args)
+    vertical = None
+    if args.relax_vertical:
+        from instrument.contact import Material
 
-        f_perp = _mdr_force(args, geometry.radius, sp.t, sp.delta)
-        f_h, f_v = resolve_forces(f_perp, sp.psi, geometry.h, args.mu)
-        sp = replace(sp, f_perp=f_perp, f_h=f_h, f_v=f_v)
+        vertical = Material(args.g_e, tuple(args.relax_vertical), args.nu)
+    sp = shear_pass(geometry, material, args.speed, args.mu, args.dt, args.margin,
+                    material_vertical=vertical, unloading=args.unloading)
     path = write_columns(args.out, {"t_s": sp.t, "psi_m": sp.psi, "delta_m": sp.delta,
                                     "f_perp_N": sp.f_perp, "f_h_N": sp.f_h, "f_v_N": sp.f_v})
     print(f"wrote {sp.t.size} samples (l_g {geometry.l_g * 1e3:.4g} mm, peak F_h "

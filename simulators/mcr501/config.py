@@ -6,6 +6,11 @@ one material serves both forces), mu = 5e-3, arm 27 mm. The instrument limits an
 chain (resolution, noise, offset, acceleration) are UNVERIFIED placeholders, chosen so that the
 paper's features stay resolvable. ``lower_angle`` and ``touch_gap`` are hidden from protocols:
 they must find them by contact search.
+
+Each pass is a fresh contact (physics.md section 1): ``carry_history`` keeps the hereditary
+state across separations instead, a sensitivity option (docs/decisions/0140). The paper's
+anisotropy: ``material_vertical`` gives the F_v its own modulus (the paper fits F_v with
+G_l = 4 G_e and F_h with 5 G_e); by default one material serves both forces.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from instrument.contact import Material
+from instrument.contact import UNLOADING_MODELS, Material
 from instrument.errors import ConfigError
 
 PAPER_MATERIAL = Material.of(4e3, [(2e4, 2000.0)], nu=0.5)
@@ -26,6 +31,12 @@ class SimConfig:
     r1: float = 9.2e-3
     r2: float = 9.96e-3
     material: Material = PAPER_MATERIAL
+    #: Material whose F_perp gives F_v (the paper's anisotropy); None: ``material``.
+    material_vertical: Material | None = None
+    #: Normal-contact model on unloading: "cutoff" (the paper's) or "mdr" (physics.md 1b).
+    unloading: str = "cutoff"
+    #: Keep the hereditary state across separations (sensitivity option; off: fresh contact).
+    carry_history: bool = False
     mu: float = 5e-3
     arm: float = 0.027
     #: Angular position of the lower sphere's centre (hidden).
@@ -86,6 +97,9 @@ class SimConfig:
             raise ConfigError(
                 "touch_gap", self.touch_gap, "must lie less than R1 + R2 above gap_min"
             )
+        if self.unloading not in UNLOADING_MODELS:
+            raise ConfigError("unloading", self.unloading,
+                              f"allowed: {', '.join(UNLOADING_MODELS)}")
         if self.stream_buffer < 1:
             raise ConfigError("stream_buffer", self.stream_buffer, "must be >= 1")
 

@@ -3,9 +3,12 @@
 Geometry (physics.md section 2, arc treated as a straight line): the upper centre sits at
 ``x = wrap(angle - lower_angle) * arm`` along the arc from the lower centre (positive
 clockwise) and at vertical centre distance ``h = R1 + R2 - (touch_gap - gap)``. The overlap is
-``delta = R1 + R2 - hypot(h, x)``; the normal force comes from one
-:class:`instrument.contact.NormalContact` stepped through the whole trajectory in order, so a
-new pass meets the history left by the previous one, decayed.
+``delta = R1 + R2 - hypot(h, x)``; the normal force comes from one contact made by
+:func:`instrument.contact.make_contact`, stepped through the whole trajectory in order. Each
+pass is a fresh contact: where the overlap returns to <= 0 the history is discarded (unless
+``carry_history``, docs/decisions/0140), so nothing is integrated while the spheres are
+apart. With ``material_vertical`` a second contact gives the F_perp that F_v is resolved
+from (the paper's anisotropy).
 
 Forces are resolved in the frame of the motion (``psi = -s x`` with ``s = sign(omega)``) by
 :func:`instrument.sliding.resolve_forces`, then the lab-frame torque is
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from instrument.contact import NormalContact, effective_radius
+from instrument.contact import ContactModel, effective_radius, make_contact
 from instrument.sliding import resolve_forces
 from simulators.mcr501.config import SimConfig
 from simulators.mcr501.motion import FloatArray, Lift, Spin
@@ -90,7 +93,13 @@ class ShearCell:
         self.cfg = config
         self.spin = Spin(t0, config.start_angle, 0.0, 0.0, config.acceleration)
         self.lift = Lift(t0, config.start_gap, config.start_gap, config.lift_speed)
-        self.contact = NormalContact(config.material, effective_radius(config.r1, config.r2))
+        radius = effective_radius(config.r1, config.r2)
+        self.contact: ContactModel = make_contact(config.material, radius, config.unloading,
+                                                  carry_history=config.carry_history)
+        #: The contact F_v is resolved from, when the material is anisotropic.
+        self.contact_v: ContactModel | None = None if config.material_vertical is None else (
+            make_contact(config.material_vertical, radius, config.unloading,
+                         carry_history=config.carry_history))
         self.t_int = t0
         self._anchor = t0
         self._stream: tuple[float, float, int] | None = None  # (t_start, interval, next k)
@@ -153,10 +162,18 @@ class ShearCell:
         return self.cfg.s - np.hypot(h, x)
 
     def _resolve(
-        self, f_perp: FloatArray, x: FloatArray, h: FloatArray, omega: FloatArray
+        self, f_perp: FloatArray, x: FloatArray, h: FloatArray, omega: FloatArray,
+        f_perp_v: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """F_h in the moving frame, F_v, and the lab-frame motor torque."""
+        """F_h in the moving frame, F_v (from ``f_perp_v`` if given), and the motor torque."""
         s = np.sign(omega)
+        if f_perp_v is None and not f_perp.any():  # apart: no force, only the bearing drag
+            zero = np.zeros(f_perp.size)
+            return zero, zero, s * self.cfg.torque_offset
+        if f_perp_v is not None:
+            f_h, _, torque = self._resolve(f_perp, x, h, omega)
+            _, f_v, _ = self._resolve(f_perp_v, x, h, omega)
+            return f_h, f_v, torque
         frame = np.where(s == 0, 1.0, s)
         moving = s != 0
         n_moving = int(np.count_nonzero(moving))
@@ -188,7 +205,9 @@ class ShearCell:
             x, h = self.geometry(phi, gap)
             delta = self.cfg.s - np.hypot(h, x)
             f_perp = np.array([self.contact.step(t, float(delta[0]))])
-            f_h, f_v, torque = self._resolve(f_perp, x, h, omega)
+            f_perp_v = None if self.contact_v is None else np.array(
+                [self.contact_v.step(t, float(delta[0]))])
+            f_h, f_v, torque = self._resolve(f_perp, x, h, omega, f_perp_v)
         finally:
             self._restore(saved)
         return Forces(float(delta[0]), float(f_perp[0]), float(f_h[0]), float(f_v[0]),
@@ -196,12 +215,14 @@ class ShearCell:
 
     # -- lazy integration --------------------------------------------------------------------
 
-    def _save(self) -> tuple[float | None, float, FloatArray]:
-        c = self.contact
-        return c.t_last, c.x_last, c.h.copy()
+    def _save(self) -> tuple[object, object]:
+        v = self.contact_v
+        return self.contact.snapshot(), None if v is None else v.snapshot()
 
-    def _restore(self, saved: tuple[float | None, float, FloatArray]) -> None:
-        self.contact.t_last, self.contact.x_last, self.contact.h = saved[0], saved[1], saved[2]
+    def _restore(self, saved: tuple[object, object]) -> None:
+        self.contact.restore(saved[0])
+        if self.contact_v is not None:
+            self.contact_v.restore(saved[1])
 
     def commit(self, t: float) -> None:
         """Integrate exactly to ``t`` and start a new piece there."""
@@ -270,7 +291,8 @@ class ShearCell:
         delta = self.cfg.s - np.hypot(h, x)
         saved = self._save()
         f_perp = self.contact.block(nodes, delta)
-        _, f_v, torque = self._resolve(f_perp, x, h, omega)
+        f_perp_v = None if self.contact_v is None else self.contact_v.block(nodes, delta)
+        _, f_v, torque = self._resolve(f_perp, x, h, omega, f_perp_v)
         abs_fv, abs_m = np.abs(f_v), np.abs(torque)
         cfg = self.cfg
         n = nodes.size
@@ -295,6 +317,8 @@ class ShearCell:
             n = i + 1
             self._restore(saved)
             self.contact.block(nodes[:n], delta[:n])
+            if self.contact_v is not None:
+                self.contact_v.block(nodes[:n], delta[:n])
             if over[i]:
                 detail = f"normal force overload at overlap {delta[i] * 1e3:.3f} mm"
                 code = TRIP_OVERLOAD

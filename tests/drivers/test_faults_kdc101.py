@@ -156,8 +156,10 @@ def test_a_frozen_controller_that_resumes_answers_in_step(served: Served) -> Non
             assert failing(stage.velocity_params, InstrumentTimeout)[1] < BOUND
         finally:
             served.resume()
-        slower(stage)
-        assert stage.stale_replies == 1
+        slower(stage)  # fails if the old read's reply is taken for the read-back
+        # the late reply is either still in flight (dropped by the resync: counted) or
+        # already buffered when the next request starts (discarded with the input)
+        assert stage.stale_replies <= 1
         assert not stage.status().busy
     finally:
         stage.close()

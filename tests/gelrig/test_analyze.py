@@ -157,7 +157,8 @@ def test_crash_mid_ladder_analyses_the_complete_passes(shear_run, tmp_path):
     assert "no opposite pass" in text and "6" in text
     analysed = sorted(r.index for r in result.ladders[0].results)
     assert analysed == [0, 1, 2, 3, 4, 5, 6]
-    assert result.model_fits[0].material.g_e == pytest.approx(4e3, rel=0.05)
+    # 7 fresh passes tell G_e from G_1 only by the decay within each contact (ADR 0140)
+    assert result.model_fits[0].material.g_e == pytest.approx(4e3, rel=0.1)
     assert "INCOMPLETE" in result.summary
     assert "Incomplete data" in result.report_path.read_text()
 

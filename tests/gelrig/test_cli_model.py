@@ -144,3 +144,31 @@ def test_console_script_bad_input_has_no_traceback():
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.count("\n") == 1 and "--relax" in proc.stderr
+
+
+def test_model_shear_anisotropic_vertical_force(tmp_path):
+    """--relax-vertical: F_v from its own modulus (the paper's G_l = 4 G_e), F_h unchanged."""
+    iso, aniso = tmp_path / "iso.csv", tmp_path / "aniso.csv"
+    assert main([*SHEAR, "--out", str(iso)]) == 0
+    assert main([*SHEAR, "--relax-vertical", "16 kPa:2000 s", "--out", str(aniso)]) == 0
+    names = ["f_perp_N", "f_h_N", "f_v_N"]
+    a, b = read_columns(iso, names), read_columns(aniso, names)
+    assert np.array_equal(a["f_h_N"], b["f_h_N"])
+    ratio = b["f_v_N"].max() / a["f_v_N"].max()
+    assert 0.8 < ratio < 0.9  # (G_e + 4 G_e) / (G_e + 5 G_e) = 0.83 at the instant of loading
+
+
+def test_model_shear_unloading_mdr_holds_the_receding_contact_longer(tmp_path, capsys):
+    """MDR (physics.md 1b): the same force while the contact grows, never negative, and
+    in contact over more of the pass than the cutoff model."""
+    runs = {}
+    for model in ("cutoff", "mdr"):
+        out = tmp_path / f"{model}.csv"
+        assert main([*SHEAR, "--unloading", model, "--out", str(out)]) == 0
+        runs[model] = read_columns(out, ["psi_m", "f_perp_N"])
+    cut, mdr = runs["cutoff"], runs["mdr"]
+    assert (mdr["f_perp_N"] >= 0).all()
+    growing = cut["psi_m"] > 0
+    np.testing.assert_allclose(mdr["f_perp_N"][growing], cut["f_perp_N"][growing],
+                               rtol=2e-3, atol=1e-6)
+    assert (mdr["f_perp_N"] > 0).sum() > (cut["f_perp_N"] > 0).sum()

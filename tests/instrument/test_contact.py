@@ -14,6 +14,7 @@ from instrument.contact import (
     effective_radius,
     hereditary,
     hertz_prefactor,
+    make_contact,
     normal_force,
     normal_force_uniform,
 )
@@ -23,7 +24,8 @@ R = 5e-3
 
 
 def brute_force(t, delta, material, radius):
-    """O(N^2) oracle: the exact integral for x linear within each step, summed directly."""
+    """O(N^2) oracle: the exact integral for x linear within each step, summed directly
+    (the history carried across separations)."""
     k = hertz_prefactor(radius, material.nu)
     x = np.maximum(delta, 0.0) ** 1.5
     xs = np.concatenate(([0.0], x))
@@ -53,8 +55,75 @@ def test_recursion_equals_brute_force_variable_dt(terms):
     t = np.cumsum(rng.uniform(0.001, 0.7, 150))
     delta = 1e-3 * np.sin(t / 8.0) + 2e-4  # loads, unloads, separates, reloads
     material = Material.of(4e3, [(2e4, 3.0), (5e3, 0.4), (1e3, 40.0)][:terms])
-    np.testing.assert_allclose(normal_force(t, delta, material, R),
+    np.testing.assert_allclose(normal_force(t, delta, material, R, carry_history=True),
                                brute_force(t, delta, material, R), rtol=1e-10, atol=1e-15)
+
+
+def fresh_oracle(t, delta, material, radius):
+    """Each contact on its own: the brute force over each run of overlap > 0, started from
+    the apart sample before it (x = 0, no history); 0 where apart."""
+    out = np.zeros(t.size)
+    inside = delta > 0
+    n = 0
+    while n < t.size:
+        if not inside[n]:
+            n += 1
+            continue
+        end = n
+        while end < t.size and inside[end]:
+            end += 1
+        lo = max(n - 1, 0)
+        out[n:end] = brute_force(t[lo:end], delta[lo:end], material, radius)[n - lo:]
+        n = end
+    return out
+
+
+@pytest.mark.parametrize("terms", [1, 2])
+def test_each_contact_starts_fresh_by_default(terms):
+    rng = np.random.default_rng(10 + terms)
+    t = np.cumsum(rng.uniform(0.001, 0.7, 200))
+    delta = 1e-3 * np.sin(t / 8.0) + 2e-4  # three contacts, separated
+    material = Material.of(4e3, [(2e4, 30.0), (5e3, 4.0)][:terms])
+    want = fresh_oracle(t, delta, material, R)
+    np.testing.assert_allclose(normal_force(t, delta, material, R), want,
+                               rtol=1e-10, atol=1e-15)
+    # streamed one sample at a time, in blocks, and on a uniform grid: the same
+    stepper = make_contact(material, R)
+    stepped = np.array([stepper.step(a, b) for a, b in zip(t, delta, strict=True)])
+    np.testing.assert_allclose(stepped, want, rtol=1e-10, atol=1e-15)
+    chunks = make_contact(material, R)
+    chunked = np.concatenate([chunks.block(t[i:i + 37], delta[i:i + 37])
+                              for i in range(0, t.size, 37)])
+    np.testing.assert_allclose(chunked, want, rtol=1e-10, atol=1e-15)
+    tu = np.arange(400) * 0.5
+    du = 1e-3 * np.sin(tu / 8.0) + 2e-4
+    np.testing.assert_allclose(normal_force_uniform(du, 0.5, material, R),
+                               fresh_oracle(tu, du, material, R), rtol=1e-10, atol=1e-15)
+    # the carried history differs: the later contacts meet a negative hidden force
+    carried = normal_force(t, delta, material, R, carry_history=True)
+    later = t > 60.0
+    assert np.max(np.abs(carried[later] - want[later])) > 0.01 * np.max(want)
+
+
+def test_reset_snapshot_and_the_factory():
+    material = Material.of(4e3, [(2e4, 30.0)])
+    contact = make_contact(material, R)
+    contact.block(np.linspace(0, 10, 11), np.linspace(0, 1e-3, 11))
+    saved = contact.snapshot()
+    ahead = contact.step(11.0, 8e-4)
+    contact.restore(saved)
+    assert contact.step(11.0, 8e-4) == ahead
+    contact.reset()
+    new = make_contact(material, R)
+    new.step(11.0, 0.0)
+    assert contact.step(12.0, 8e-4) == new.step(12.0, 8e-4)  # as a contact with no history
+    mdr = make_contact(material, R, "mdr")  # fresh per contact too (physics.md 1)
+    mdr.block(np.array([0.0, 5.0, 10.0]), np.array([0.0, 8e-4, 0.0]))
+    again = make_contact(material, R, "mdr")
+    again.step(10.0, 0.0)
+    assert mdr.step(12.0, 8e-4) == again.step(12.0, 8e-4)
+    with pytest.raises(ConfigError):
+        make_contact(material, R, "ting")
 
 
 def test_recursion_converges_to_quadrature_of_the_hereditary_integral():
@@ -127,7 +196,7 @@ def test_streaming_step_block_and_uniform_agree():
 
 def test_history_decays_while_apart_and_cutoff_is_on_output_only():
     material = Material.of(4e3, [(2e4, 50.0)])
-    contact = NormalContact(material, R)
+    contact = NormalContact(material, R, carry_history=True)
     contact.block(np.linspace(0, 10, 101), np.linspace(0, 1e-3, 101))
     # Unload quickly: the hereditary part goes negative, the output is clipped at zero.
     elastic, hat = contact.block_components(np.linspace(10.1, 11, 10), np.linspace(9e-4, 0, 10))
@@ -136,6 +205,10 @@ def test_history_decays_while_apart_and_cutoff_is_on_output_only():
     h_apart = contact.h[0]
     contact.block(np.array([111.0]), np.array([-1e-4]))  # apart for 100 s: only decays
     assert contact.h[0] == pytest.approx(h_apart * math.exp(-100.0 / 50.0), rel=1e-9)
+    fresh = NormalContact(material, R)  # the default: the state ends with the contact
+    fresh.block(np.linspace(0, 10, 101), np.linspace(0, 1e-3, 101))
+    fresh.block(np.linspace(10.1, 11, 10), np.linspace(9e-4, 0, 10))
+    assert fresh.h[0] == 0.0
 
 
 def test_first_sample_loads_instantaneously():

@@ -298,7 +298,7 @@ def test_small_blocks_and_save_restore_give_the_same_record():
     contact = MdrContact(TWO, R, delta_max=1.3e-3)
     parts = []
     for i in range(0, t.size, 5):  # below the size where the per-sample update takes over
-        saved = contact.save()
+        saved = contact.snapshot()
         contact.step(t[i] + 0.5, 2e-3)  # a peek ahead (past the grid: it grows) ...
         contact.restore(saved)  # ... forgotten
         parts.append(contact.block(t[i : i + 5], delta[i : i + 5]))

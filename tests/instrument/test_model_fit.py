@@ -57,7 +57,10 @@ def test_confidence_intervals_are_finite_and_bracket_the_values(fitted):
         assert 0 < e.stderr < math.inf
         assert e.lo < e.value < e.hi
     g_e = fitted.estimate("G_e")
-    assert g_e.stderr / g_e.value < 0.02
+    # Each pass a fresh contact: G_e is told from G_1 only by the decay within a contact
+    # (a few hundred s of tau = 2000 s), so it is known to a few %; G_e + G_1 much better.
+    assert g_e.stderr / g_e.value < 0.06
+    assert g_e.lo < 4e3 < g_e.hi
     assert {row["parameter"] for row in fitted.rows()} == set(names)
 
 
@@ -82,14 +85,20 @@ def test_two_terms_fit_a_two_term_material():
     moving = cols["direction"] != 0
     assert np.sqrt(np.mean((f_v[moving] - cols["normal_force_N"][moving]) ** 2)) < 3e-5
     assert fit.material.g_instant == pytest.approx(truth.g_instant, rel=0.03)
-    assert fit.material.g_e == pytest.approx(3e3, rel=0.1)
-    assert sorted(r.tau for r in fit.material.relax)[1] == pytest.approx(1500.0, rel=0.2)
+    # Fresh contacts last a few hundred s of tau_1 = 1500 s: they determine G_e + G_1 and the
+    # initial decay rate G_1/tau_1 of the slow term, not G_e alone (a ridge the linearised
+    # intervals do not describe; docs/decisions/0140). The fast term is sharp.
+    g_e, g_1, tau_1 = (fit.estimate(n).value for n in ("G_e", "G_1", "tau_1"))
+    assert g_e + g_1 == pytest.approx(1.8e4, rel=0.03)
+    assert g_1 / tau_1 == pytest.approx(1.5e4 / 1500.0, rel=0.1)
+    assert fit.estimate("G_e").stderr > 0.1 * g_e  # and it says G_e is loose
+    assert fit.estimate("G_2").value == pytest.approx(6e3, rel=0.03)
+    assert fit.estimate("tau_2").value == pytest.approx(60.0, rel=0.03)
 
 
-def test_history_of_earlier_steps_is_part_of_the_model():
-    """Contact made before the ladder (here: a deeper overlap, recorded as another step)
-    leaves history the model must run through; without it the fit cannot explain the data."""
-    cols, _, _ = synth_ladder(overlaps=(0.8e-3, 0.5e-3), speeds=(2.38e-5, 2.37e-4), seed=6)
+def _split_history(carry: bool):
+    cols, _, _ = synth_ladder(overlaps=(0.8e-3, 0.5e-3), speeds=(2.38e-5, 2.37e-4), seed=6,
+                              carry_history=carry)
     earlier = cols["pass"] < 4
     cols["pass"] = np.where(earlier, -1.0, cols["pass"])
     split = int(np.flatnonzero(~earlier & (cols["pass"] >= 0))[0]) - 10
@@ -97,13 +106,57 @@ def test_history_of_earlier_steps_is_part_of_the_model():
     ladder = {k: v[split:] for k, v in cols.items()}
     analysis, _ = analyse_ladder(ladder, ARM)
     assert [r.index for r in analysis.results] == [4, 5, 6, 7]
+    return first, ladder, analysis
+
+
+def test_fresh_contacts_need_no_history_of_earlier_steps():
+    """Each pass starts fresh: contact made before the ladder (a deeper overlap, recorded as
+    another step) leaves nothing the model must run through."""
+    first, ladder, analysis = _split_history(carry=False)
     with_history = fit_ladder(Trajectory.from_steps([ladder, first]), analysis.results, SETUP,
+                              TOUCH, LOWER)
+    without = fit_ladder(Trajectory.from_steps([ladder]), analysis.results, SETUP, TOUCH, LOWER)
+    for fit in (with_history, without):
+        assert fit.material.g_instant == pytest.approx(2.4e4, rel=0.01)
+        assert fit.rms_v == pytest.approx(fit.noise_v, rel=0.2)
+    assert without.rms_v == pytest.approx(with_history.rms_v, rel=0.01)
+
+
+def test_carried_history_of_earlier_steps_is_part_of_that_model():
+    """With ``carry_history`` (the sensitivity option) the earlier contact leaves history the
+    model must run through; without it the fit cannot explain the data."""
+    first, ladder, analysis = _split_history(carry=True)
+    setup = FitSetup(R1, R2, ARM, carry_history=True)
+    with_history = fit_ladder(Trajectory.from_steps([ladder, first]), analysis.results, setup,
                               TOUCH, LOWER)
     assert with_history.material.g_e == pytest.approx(4e3, rel=0.02)
     assert with_history.material.relax[0].tau == pytest.approx(2000.0, rel=0.03)
     assert with_history.rms_v == pytest.approx(with_history.noise_v, rel=0.2)
-    without = fit_ladder(Trajectory.from_steps([ladder]), analysis.results, SETUP, TOUCH, LOWER)
+    without = fit_ladder(Trajectory.from_steps([ladder]), analysis.results, setup, TOUCH, LOWER)
     assert without.rms_v > 3 * with_history.rms_v
+
+
+def test_anisotropic_fit_recovers_separate_amplitudes_for_f_h_and_f_v():
+    """The paper's anisotropy: F_h with G_l = 5 G_e, F_v with 4 G_e."""
+    vertical = Material.of(4e3, [(1.6e4, 2000.0)])
+    cols, _, _ = synth_ladder(overlaps=(0.4e-3, 0.7e-3), speeds=(2.38e-5, 1.19e-4, 2.37e-4),
+                              seed=8, material_vertical=vertical)
+    analysis, _ = analyse_ladder(cols, ARM, travel=14e-3)
+    setup = FitSetup(R1, R2, ARM, anisotropic=True)
+    fit = fit_ladder(Trajectory.from_steps([cols]), analysis.results, setup, TOUCH, LOWER)
+    names = [e.name for e in fit.estimates]
+    assert names[:4] == ["G_e", "G_1_h", "G_1_v", "tau_1"]
+    g_h, g_v = fit.estimate("G_1_h"), fit.estimate("G_1_v")
+    for e, want in ((g_h, 2e4), (g_v, 1.6e4)):
+        assert e.lo < want < e.hi and e.value == pytest.approx(want, rel=0.05)
+    assert g_v.hi < g_h.lo  # told apart
+    assert fit.material_vertical is not None
+    assert fit.material_vertical.relax[0].g == g_v.value
+    _, f_v = model_forces(Trajectory.from_steps([cols]), fit, setup)
+    moving = cols["direction"] != 0
+    assert np.sqrt(np.mean((f_v[moving] - cols["normal_force_N"][moving]) ** 2)) < 3e-5
+    joint = fit_ladder(Trajectory.from_steps([cols]), analysis.results, SETUP, TOUCH, LOWER)
+    assert joint.rms_v > 2 * fit.rms_v  # one modulus cannot explain both forces
 
 
 def test_missing_geometry_is_a_clear_error(recorded):

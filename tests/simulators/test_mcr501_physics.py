@@ -10,6 +10,7 @@ import pytest
 
 from drivers.mcr501 import MCR501
 from instrument.clock import VirtualClock
+from instrument.contact import Material
 from instrument.sliding import SlidingGeometry, shear_pass
 from simulators.mcr501 import DirectLink, MCR501Simulator, ShearCell, SimConfig
 from simulators.mcr501.motion import Lift, Spin
@@ -58,23 +59,45 @@ def test_pass_matches_the_contact_model(speed: float, sign: int) -> None:
     assert np.max(np.abs(torque)) > 2e-4  # the pass really went through contact
 
 
-def test_a_new_pass_meets_the_decayed_history_of_the_last() -> None:
-    cfg = SimConfig(acceleration=50.0)
+def _second_over_first(cfg: SimConfig, rest: float) -> float:
     speed = 1.19e-4
+    cell, _, f_v1, _ = _pass_cell(cfg, speed, 1)
+    cell.advance(cell.t_int + rest)
+    _, _, f_v2, _ = _pass_cell(cfg, speed, -1, cell)
+    assert max(f_v1) > 0.09
+    return max(f_v2) / max(f_v1)
 
-    def second_peak(rest: float) -> float:
-        cell, _, f_v1, _ = _pass_cell(cfg, speed, 1)
-        cell.advance(cell.t_int + rest)
-        _, _, f_v2, _ = _pass_cell(cfg, speed, -1, cell)
-        assert max(f_v1) > 0.09
-        return max(f_v2) / max(f_v1)
 
-    fresh = second_peak(0.0)
-    later = second_peak(2000.0)
-    rested = second_peak(20_000.0)
+def test_each_pass_is_a_fresh_contact() -> None:
+    cfg = SimConfig(acceleration=50.0)
+    for rest in (0.0, 2000.0):
+        assert _second_over_first(cfg, rest) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_with_carry_history_a_new_pass_meets_the_decayed_history_of_the_last() -> None:
+    cfg = SimConfig(acceleration=50.0, carry_history=True)
+    fresh = _second_over_first(cfg, 0.0)
+    later = _second_over_first(cfg, 2000.0)
+    rested = _second_over_first(cfg, 20_000.0)
     assert fresh < later < rested  # the history left by the first pass decays
     assert fresh < 0.98
     assert rested == pytest.approx(1.0, abs=1e-3)
+
+
+def test_anisotropic_vertical_force_uses_its_own_modulus() -> None:
+    vertical = Material.of(4e3, [(1.6e4, 2000.0)])
+    iso = SimConfig(acceleration=50.0, torque_offset=0.0)
+    aniso = SimConfig(acceleration=50.0, torque_offset=0.0, material_vertical=vertical)
+    _, psi, f_v_iso, m_iso = _pass_cell(iso, 1.19e-4, 1)
+    _, psi2, f_v_aniso, m_aniso = _pass_cell(aniso, 1.19e-4, 1)
+    assert np.array_equal(psi, psi2)
+    assert m_aniso == m_iso  # F_h (the torque) keeps the horizontal material
+    geo = SlidingGeometry(iso.r1, iso.r2, DELTA)
+    model = shear_pass(geo, vertical, 1.19e-4, mu=iso.mu, margin=0.5e-3, dt=0.01e-3 / 1.19e-4)
+    order = np.argsort(model.psi)
+    want_v = np.interp(psi, model.psi[order], model.f_v[order])
+    assert np.max(np.abs(np.array(f_v_aniso) - want_v)) < 2e-3 * float(np.max(want_v))
+    assert max(f_v_aniso) < 0.99 * max(f_v_iso)
 
 
 def test_hold_relaxes_with_the_material_time_scale() -> None:
