@@ -21,11 +21,11 @@ import statistics
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
+from bench_gui import pump, rss_mb
 from PySide6.QtWidgets import QApplication
 
 from gelrig.commands.gui import make_services
@@ -35,23 +35,6 @@ from protocols.spec import paper_protocol
 
 #: The issue's target: the GUI stays within this much of its idle RSS (MB).
 TARGET_MB = 300.0
-
-
-def rss_mb() -> float:
-    """Resident set size of this process now (MB)."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return math.nan
-
-
-def pump(app: QApplication, until: Callable[[], bool], timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while not until():
-        if time.monotonic() > deadline:
-            raise TimeoutError("the GUI did not get there in time")
-        app.processEvents()
-        time.sleep(0.002)
 
 
 def settle(app: QApplication) -> float:
