@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from instrument.contact import FloatArray, Material, hertz_prefactor, make_contact
+from instrument.contact import FloatArray, Material, hertz_prefactor
+from instrument.contact_models import make_contact
 from instrument.errors import ConfigError
 
 

@@ -25,7 +25,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Protocol, cast
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -405,52 +405,6 @@ class NormalContact:
             hi = hereditary(dt, x, float(self._taus[i]), x_prev, float(self.h[i]))
             out += self._gs[i] * hi
             self.h[i] = hi[-1]
-
-
-Unloading = Literal["cutoff", "mdr"]
-UNLOADING_MODELS: tuple[str, ...] = ("cutoff", "mdr")
-
-
-class ContactModel(Protocol):
-    """The streaming contract every normal-contact model meets (simulators, the model fit)."""
-
-    t_last: float | None
-
-    def step(self, t: float, delta: float) -> float: ...
-
-    def block(self, t: ArrayLike, delta: ArrayLike) -> FloatArray: ...
-
-    def block_uniform(self, delta: ArrayLike, dt: float) -> FloatArray: ...
-
-    def reset(self) -> None: ...
-
-    def snapshot(self) -> object: ...
-
-    def restore(self, state: object) -> None: ...
-
-
-def make_contact(
-    material: Material,
-    radius: float,
-    unloading: Unloading | str = "cutoff",
-    *,
-    carry_history: bool = False,
-) -> ContactModel:
-    """The one place a normal contact is made (simulators, the model, ``gelrig model``).
-
-    ``unloading``: ``"cutoff"`` is the paper's hereditary model with the no-adhesion cutoff;
-    ``"mdr"`` is the method of dimensionality reduction with viscoelastic elements
-    (physics.md 1b, ``instrument/mdr.py``, docs/decisions/0150).
-    ``carry_history`` keeps the hereditary state across separations (a sensitivity option,
-    docs/decisions/0140); the default starts each contact fresh.
-    """
-    if unloading == "cutoff":
-        return NormalContact(material, radius, carry_history=carry_history)
-    if unloading == "mdr":
-        from instrument.mdr import MdrContact  # imports this module: import at call time
-
-        return MdrContact(material, radius, carry_history=carry_history)
-    raise ConfigError("unloading", unloading, f"allowed: {', '.join(UNLOADING_MODELS)}")
 
 
 def normal_force(

@@ -7,7 +7,7 @@ section 2, docs/decisions/0030):
 - the recorded arm angle and gap of every shear step, in time order, give the overlap
   ``delta = R1 + R2 - hypot(h, x)`` with ``x = wrap(angle - lower_angle) * L`` and
   ``h = R1 + R2 - (touch_gap - gap)``;
-- one contact (:func:`instrument.contact.make_contact`) runs through that whole trajectory;
+- one contact (:func:`instrument.contact_models.make_contact`) runs through that whole trajectory;
   each pass is a fresh contact (the history ends where the overlap returns to <= 0), unless
   ``FitSetup.carry_history`` (a sensitivity option, docs/decisions/0140);
 - ``F_h`` and ``F_v`` follow from :func:`instrument.sliding.resolve_forces` in the frame of
@@ -37,7 +37,6 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares, nnls
 
 from instrument.contact import (
-    UNLOADING_MODELS,
     FloatArray,
     Material,
     RelaxationTerm,
@@ -45,8 +44,8 @@ from instrument.contact import (
     hereditary_contacts,
     hertz_power,
     hertz_prefactor,
-    make_contact,
 )
+from instrument.contact_models import UNLOADING_MODELS, make_contact
 from instrument.errors import ConfigError
 from instrument.shear_analysis import BoolArray, PassResult, pass_forces, split_passes
 from instrument.sliding import resolve_forces

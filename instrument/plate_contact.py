@@ -10,7 +10,7 @@ with ``direction = +1`` when an increasing stage position moves the plate into t
 (the default) and ``-1`` for a stage mounted the other way. ``first_touch`` is the stage
 position at which the plate meets the sphere's top: the value a contact search must find.
 
-One contact (:func:`~instrument.contact.make_contact`) carries the hereditary history for the
+One contact (:func:`~instrument.contact_models.make_contact`) carries the hereditary history for the
 whole life of the object (each contact fresh: a retracted plate leaves none), so queries must
 come in increasing time; gaps between queries are filled with internal steps so the history
 still follows the plate.
@@ -24,7 +24,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.contact import FloatArray, Material, make_contact
+from instrument.contact import FloatArray, Material
+from instrument.contact_models import make_contact
 from instrument.errors import ConfigError
 
 #: Plate position (m) as a function of time (s).

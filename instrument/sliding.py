@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.contact import FloatArray, Material, effective_radius, make_contact
+from instrument.contact import FloatArray, Material, effective_radius
+from instrument.contact_models import make_contact
 from instrument.errors import ConfigError
 
 
@@ -128,7 +129,7 @@ def shear_pass(
     ``dt`` defaults to the time for 1/2000 of the travel. The contact has no prior history
     (each pass is a fresh contact). ``material_vertical`` gives F_v its own modulus (the
     paper's anisotropy; ``f_perp`` stays the horizontal material's); ``unloading`` picks the
-    contact model (:func:`instrument.contact.make_contact`).
+    contact model (:func:`instrument.contact_models.make_contact`).
     """
     if not (math.isfinite(speed) and speed > 0):
         raise ConfigError("speed", speed, "must be > 0 m/s")

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
-from instrument.contact import UNLOADING_MODELS, Material, RelaxationTerm
+from instrument.contact import Material, RelaxationTerm
+from instrument.contact_models import UNLOADING_MODELS
 from instrument.daq import Usb6001Config
 from instrument.errors import ConfigError
 from instrument.fields import Choice, Config, Field, Text, Where, param, read_table, read_toml

@@ -18,7 +18,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from instrument.contact import UNLOADING_MODELS, Material
+from instrument.contact import Material
+from instrument.contact_models import UNLOADING_MODELS
 from instrument.errors import ConfigError
 
 PAPER_MATERIAL = Material.of(4e3, [(2e4, 2000.0)], nu=0.5)

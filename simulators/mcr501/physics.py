@@ -4,7 +4,7 @@ Geometry (physics.md section 2, arc treated as a straight line): the upper centr
 ``x = wrap(angle - lower_angle) * arm`` along the arc from the lower centre (positive
 clockwise) and at vertical centre distance ``h = R1 + R2 - (touch_gap - gap)``. The overlap is
 ``delta = R1 + R2 - hypot(h, x)``; the normal force comes from one contact made by
-:func:`instrument.contact.make_contact`, stepped through the whole trajectory in order. Each
+:func:`instrument.contact_models.make_contact`, stepped through the whole trajectory in order. Each
 pass is a fresh contact: where the overlap returns to <= 0 the history is discarded (unless
 ``carry_history``, docs/decisions/0140), so nothing is integrated while the spheres are
 apart. With ``material_vertical`` a second contact gives the F_perp that F_v is resolved
@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from instrument.contact import ContactModel, effective_radius, make_contact
+from instrument.contact import effective_radius
+from instrument.contact_models import ContactModel, make_contact
 from instrument.sliding import resolve_forces
 from simulators.mcr501.config import SimConfig
 from simulators.mcr501.motion import FloatArray, Lift, Spin

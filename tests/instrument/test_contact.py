@@ -14,10 +14,10 @@ from instrument.contact import (
     effective_radius,
     hereditary,
     hertz_prefactor,
-    make_contact,
     normal_force,
     normal_force_uniform,
 )
+from instrument.contact_models import make_contact
 from instrument.errors import ConfigError
 
 R = 5e-3
