@@ -136,3 +136,23 @@ def test_stored_fits_say_when_a_second_term_is_not_resolved():
     lines = [line for line in stored_summary(meta).splitlines() if "fit:" in line]
     assert len(lines) == 2 and "not resolved" not in lines[0]
     assert lines[1].endswith("-- second term not resolved: BIC improvement -20 < 10")
+
+
+@pytest.mark.parametrize("pace, wall", [(1.0, ""), (10.0, " at 10x)"), (math.inf, "fast as")])
+def test_the_progress_line_numbers_steps_once_and_states_the_wall_time_only_when_it_differs(
+        qtbot, pace, wall):
+    from gui.protocol_panel import ProtocolPanel
+
+    panel = ProtocolPanel()
+    qtbot.addWidget(panel)
+    panel.set_rig("compression", CompressionLimits(), connected=True)
+    panel.set_table(protocol(hold="100 s").table, "<test>")
+    panel.set_pace(pace, real_time=False)
+    panel.show_progress(Progress(0.0, 1, 0.5, 50.0, 40.0, "hold"), "ramp and hold")
+    text = panel.status.text()
+    assert text.startswith("step 1 ramp and hold (steps 0–1): hold — ETA ")
+    assert " of 0" not in text  # one numbering: the run's index, never 'step 1 of 0-1'
+    if wall:
+        assert wall in text
+    else:  # at 1x lab time is wall time: no second figure
+        assert text.endswith("lab time") and "≈" not in text
