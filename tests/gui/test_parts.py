@@ -156,3 +156,20 @@ def test_the_progress_line_numbers_steps_once_and_states_the_wall_time_only_when
         assert wall in text
     else:  # at 1x lab time is wall time: no second figure
         assert text.endswith("lab time") and "≈" not in text
+
+
+@pytest.mark.parametrize("kind", ["compression", "shear"])
+def test_manual_rows_keep_their_height_and_the_tare_time_says_what_it_is(qtbot, kind):
+    from gui.manual import ManualPanel
+
+    panel = ManualPanel()
+    qtbot.addWidget(panel)
+    panel.set_kind(kind)
+    panel.resize(400, 1400)  # far taller than the rows need
+    panel.show()
+    qtbot.waitExposed(panel)
+    lowest = max(b.mapTo(panel, b.rect().bottomLeft()).y() for b in panel.buttons.values())
+    assert lowest < 0.4 * panel.height()  # the rows stay together at the top
+    if kind == "compression":
+        assert panel.entries["tare"].text().startswith("average over ")
+        assert panel.entries["tare"].value() == pytest.approx(1.0)
