@@ -136,6 +136,20 @@ def test_stored_fits_say_when_a_second_term_is_not_resolved():
     lines = [line for line in stored_summary(meta).splitlines() if "fit:" in line]
     assert len(lines) == 2 and "not resolved" not in lines[0]
     assert lines[1].endswith("-- second term not resolved: BIC improvement -20 < 10")
+    assert "G_1 625 Pa" in lines[1]  # the resolved term is a result
+
+
+def test_a_term_the_data_do_not_resolve_is_not_shown_as_a_result():
+    from gui.runview import stored_summary
+
+    fit = {"G_e": 7840.0, "relax": [{"G": 46.7, "tau": 114.0}], "terms_resolved": 0,
+           "not_resolved": "first term not resolved: BIC improvement -5.94 < 10"}
+    meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": [fit]}}]}
+    (line,) = [x for x in stored_summary(meta).splitlines() if "fit:" in x]
+    head, _, tail = line.partition(" -- ")
+    assert "G_1" not in head and "G_e 7.84 kPa" in head
+    assert tail == ("first term not resolved: BIC improvement -5.94 < 10 "
+                    "(G_1 46.7 Pa, tau_1 114 s: not a result)")
 
 
 @pytest.mark.parametrize("pace, wall", [(1.0, ""), (10.0, " at 10x)"), (math.inf, "fast as")])
