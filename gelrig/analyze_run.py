@@ -233,7 +233,7 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
     levels = with_chords(ladder.levels(fit, ctx.setup.s), ctx.setup.r1, ctx.setup.r2)
     ctx.sections.append(ladder_section(ladder, levels, model, step.index, step.name,
                                        ctx.setup, ctx.out))
-    ctx.summary.extend(ladder_summary(ladder, levels, fit, step.index, step.name))
+    ctx.summary.extend(ladder_summary(ladder, levels, fit, step.index, step.name, ctx.setup))
     return analysis, fit
 
 
@@ -293,12 +293,16 @@ def analyze_run(
     terms: int = 1,
     fit_model: bool = True,
     fit_geometry: bool = True,
+    unloading: str = "cutoff",
+    anisotropic: bool = False,
 ) -> AnalysisResult:
     """Analyse every complete part of a run directory and write the report.
 
     ``out_dir`` defaults to ``RUN_DIR/analysis``. ``r1``, ``r2`` (m) are the shear rig's
     sphere radii (not stored with a run); ``terms`` is the number of relaxation terms of the
-    shear model fit. Raises ConfigError when there is nothing at all to analyse.
+    shear model fit, ``unloading`` its unloading model (``cutoff`` or ``mdr``) and
+    ``anisotropic`` whether F_h and F_v get separate G_i (the paper's anisotropy). Raises
+    ConfigError when there is nothing at all to analyse (or an option is not allowed).
     """
     run = RunDirectory(run_dir)
     meta = run.read_metadata()
@@ -312,7 +316,8 @@ def analyze_run(
     kind = str(head.get("rig", "?")) if isinstance(head, dict) else "?"
     arm = _arm(meta, problems) if any(s.kind == "speed_ladder" for s in steps) else paper.ARM
     ctx = _Context(run, out, meta, problems, [], [],
-                   FitSetup(r1, r2, arm, terms=terms, fit_geometry=fit_geometry), fit_model)
+                   FitSetup(r1, r2, arm, terms=terms, fit_geometry=fit_geometry,
+                            unloading=unloading, anisotropic=anisotropic), fit_model)
     result = AnalysisResult(run.path, out, out / "report.html", "", problems)
     for step in steps:
         if step.kind == "ramp_hold":

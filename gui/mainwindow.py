@@ -34,6 +34,7 @@ from gui.interlocks import InterlockBanner
 from gui.logpane import LogPane, QtLogHandler
 from gui.manual import Command, ManualPanel
 from gui.memory import release
+from gui.messages import explain_fault, in_words
 from gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gui.protocol_panel import ProtocolPanel, Rehearse
 from gui.rigsession import RigSession
@@ -496,11 +497,12 @@ class MainWindow(QMainWindow):
     def _on_run_finished(self, state: RunState, reason: str) -> None:
         self.plots.refresh(self.session.data)
         release()  # what the runner and recorder held during the run
-        self.protocol.set_state(state, reason)
+        words = in_words(reason)  # the raw reason goes to the log pane below
+        self.protocol.set_state(state, words)
         connected = self.session.rig is not None
         self.manual.set_enabled(connected)
         self.instruments.set_connected(connected)
-        self.statusBar().showMessage(f"run {state.value}: {reason}; data in "
+        self.statusBar().showMessage(f"run {state.value}: {words}; data in "
                                      f"{self.session.run_path}")
         self.log.add(f"run {state.value}: {reason}; data kept in {self.session.run_path}")
         self.report_button.setVisible(self.services.analyze is not None)
@@ -518,14 +520,15 @@ class MainWindow(QMainWindow):
             for line in step_lines(dict(event.results)):
                 self.log.add(f"step {event.index} result: {line.strip()}")
         elif isinstance(event, StateChanged):
-            self.protocol.set_state(event.new, event.reason)
+            self.protocol.set_state(event.new, in_words(event.reason))
             self.log.add(f"{event.new.value}" + (f": {event.reason}" if event.reason else ""))
         elif isinstance(event, InterlockTrip):
             self.log.add(f"INTERLOCK {event.message}", "error")
             self._trouble = ("Interlock tripped", event.message)
         elif isinstance(event, Fault):
-            self.log.add(f"FAULT {event.kind}: {event.message}", "error")
-            self._trouble = ("Fault: the run stopped", f"{event.kind}: {event.message}")
+            words = explain_fault(event.kind, event.message)
+            self.log.add(f"FAULT {words.detail}", "error")  # the wire detail: the log pane
+            self._trouble = ("Fault: the run stopped", words.text)
         elif isinstance(event, SafeStopped):  # the same one line as the CLI's
             line = event.state.line()
             self.log.add(line, "warning" if event.state.verified else "error")

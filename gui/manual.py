@@ -128,6 +128,8 @@ class ManualPanel(QGroupBox):
         e["step"] = _spin(0.1, 0.001, 5.0, "mm", step=0.05)
         e["target"] = _spin(0.0, 0.0, 25.0, "mm", decimals=4)
         e["tare"] = _spin(1.0, 0.01, 60.0, "s", decimals=2)
+        e["tare"].setPrefix("average over ")  # what the seconds are for
+        e["tare"].setToolTip("the tare is the mean force over this time; unload the cell first")
 
         def move(relative: float | None) -> Command:
             speed = e["speed"].value() * 1e-3
@@ -157,6 +159,7 @@ class ManualPanel(QGroupBox):
             return lambda rig: _compression(rig).tare(duration)
 
         grid.addWidget(self._button("tare", "Tare", "load-cell tare", tare), 5, 2)
+        grid.setRowStretch(6, 1)  # rows keep their height; the space left goes below them
 
     def _build_shear(self, body: QWidget) -> None:
         grid = QGridLayout(body)
@@ -184,6 +187,7 @@ class ManualPanel(QGroupBox):
         grid.addWidget(self._button("rotate", "Rotate", "rheometer rotate", rotate), 2, 2)
         grid.addWidget(self._button("hold", "Hold position", "rheometer hold",
                                     lambda: lambda rig: _shear(rig).hold()), 3, 1)
+        grid.setRowStretch(4, 1)
 
     def set_enabled(self, enabled: bool) -> None:
         """Manual commands only while connected and no protocol runs."""

@@ -8,6 +8,7 @@ ConfigError, the DAQ's driver and device messages).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from instrument.errors import (
@@ -58,6 +59,55 @@ def explain(exc: BaseException) -> UserMessage:
     """What to tell the user about ``exc``, and the wire detail for the log pane."""
     detail = f"{type(exc).__name__}: {exc}"
     return UserMessage(_text(exc), detail)
+
+
+def explain_fault(kind: str, message: str) -> UserMessage:
+    """:func:`explain` for a run's :class:`~protocols.events.Fault`, which carries the error's
+    type name and message (not the error): the typed error is rebuilt from them, the code of an
+    error reply read back from its message. A kind that names no known error (the watchdog's)
+    keeps its message, which its sender writes for people."""
+    cls = _error_classes().get(kind)
+    exc: BaseException | None = None
+    if cls is not None and issubclass(cls, DeviceErrorReply):
+        exc = cls(message, _reply_code(message))
+    elif cls is not None:
+        try:
+            exc = cls(message)
+        except TypeError:  # a constructor with other fields (ConfigError): its message stands
+            exc = None
+    detail = f"{kind}: {message}"
+    if exc is None:
+        return UserMessage(message or kind, detail)
+    return UserMessage(_text(exc), detail)
+
+
+def in_words(reason: str) -> str:
+    """A run's end reason as people read it: ``"Kind: message"`` of a known error type goes
+    through :func:`explain_fault`; any other reason (written for people) stays as it is."""
+    kind, sep, message = reason.partition(": ")
+    if not sep or kind not in _error_classes():
+        return reason
+    return explain_fault(kind, message).text
+
+
+#: How the drivers write an error reply's code in its message (MCR 501, KDC101, DAQmx).
+_CODE = re.compile(r"(?:error |\(code |DAQmx )(-?\d+)")
+
+
+def _reply_code(message: str) -> int | None:
+    found = _CODE.search(message)
+    return int(found.group(1)) if found else None
+
+
+def _error_classes() -> dict[str, type[BaseException]]:
+    """The project's error classes (and OSError's) by name, found where they are defined."""
+    out: dict[str, type[BaseException]] = {}
+    todo: list[type[BaseException]] = [GelrigError, OSError]
+    while todo:
+        cls = todo.pop()
+        out.setdefault(cls.__name__, cls)
+        todo.extend(cls.__subclasses__())
+    return out
 
 
 def _text(exc: BaseException) -> str:

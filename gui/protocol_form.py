@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (
 
 from gui.fmt import entry_text, entry_value, quantity
 from instrument.errors import ConfigError
-from instrument.fields import Field, Where, written_unit
+from instrument.fields import REQUIRED, Field, Where, written_unit
 from instrument.units import convert
 from protocols.spec import ProtocolSpec, parse_protocol
 from protocols.steps import KINDS
@@ -49,11 +49,14 @@ class Entry:
     unit: QLabel | None = None
 
     def shown_unit(self) -> str:
-        """The unit the entry is read in: the one typed ('0.5 mm/s'), else the field's own
-        display unit when the protocol file wrote one, else its SI unit (a bare number)."""
+        """The unit the entry is read in: the one typed ('0.5 mm/s'); for an empty entry the
+        unit its default is shown in (the placeholder's, 'default 0.5 mm' beside 'mm'); for a
+        bare number the field's SI unit, which is how the protocol file reads it."""
         if self.field is None:
             return ""
         text = self.edit.text().strip()
+        if not text:
+            return _default_unit(self.field)
         typed = None if isinstance(entry_value(text), int | float) else written_unit(text)
         return typed or self.field.unit
 
@@ -80,6 +83,16 @@ class Entry:
     def set_error(self, message: str) -> None:
         self.error.setText(message)
         self.error.setVisible(bool(message))
+
+
+def _default_unit(f: Field) -> str:
+    """The unit :func:`_placeholder` shows the default in (the SI unit if it shows none)."""
+    if f.display and f.unit:
+        return f.display
+    if f.default is None or f.default is REQUIRED or not f.unit or not math.isfinite(f.default):
+        return f.unit
+    shown = quantity(f.default, f.unit).split(" ", 1)
+    return shown[1] if len(shown) == 2 else f.unit
 
 
 def _placeholder(f: Field | None) -> str:

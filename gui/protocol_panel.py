@@ -208,16 +208,16 @@ class ProtocolPanel(QGroupBox):
             return
         fraction, left = eta(self.plan, progress)
         self.progress.setValue(round(1000 * min(max(fraction, 0.0), 1.0)))
-        if self.real_time:
+        if self.real_time or self.pace == 1.0:  # lab time is wall time
             wall = ""
         elif math.isinf(self.pace):
             wall = " (as fast as possible)"
         else:
             wall = f" (≈ {lab_time(left / self.pace)} at {self.pace:g}x)"
         # the run's step index (as in run.json, the step files, the log and the plots)
-        what = f"step {progress.index} of 0–{len(self.plan.durations) - 1}"
-        if step_name:
-            what += f" {step_name}"
+        last = len(self.plan.durations) - 1
+        what = f"step {progress.index}" + (f" {step_name}" if step_name else "")
+        what += f" (steps 0–{last})"
         if progress.message:
             what += f": {progress.message}"
         paused = "; pause requested (before the next step)" if self.pause_requested else ""

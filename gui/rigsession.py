@@ -18,7 +18,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 
 from gui.bridge import EventBridge
-from gui.messages import explain
+from gui.messages import explain, explain_fault
 from gui.rundata import RunData
 from gui.services import Services
 from gui.tasks import RigThread
@@ -380,7 +380,7 @@ class RigSession(QObject):
         if isinstance(event, InterlockTrip):
             self._set_alarm(event.message)
         elif isinstance(event, Fault):
-            self._set_alarm(f"fault ({event.kind}): {event.message}")
+            self._set_alarm(f"fault: {explain_fault(event.kind, event.message).text}")
         self.run_event.emit(event)
 
     def take_progress(self) -> Progress | None:

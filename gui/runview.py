@@ -61,12 +61,19 @@ def _value(key: str, value: Any) -> str:
 def _fit_line(fit: Mapping[str, Any]) -> str:
     if "error" in fit:
         return f"fit failed: {fit['error']}"
-    terms = ", ".join(f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
-                      f"tau_{k} {quantity(float(r['tau']), 's', 4)}"
-                      for k, r in enumerate(fit.get("relax", []), start=1))
-    why = f" -- {fit['not_resolved']}" if fit.get("not_resolved") else ""
-    return (f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}" + (f"; {terms}" if terms else "")
-            + why)
+    relax = list(fit.get("relax", []))
+    shown = [f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
+             f"tau_{k} {quantity(float(r['tau']), 's', 4)}" for k, r in enumerate(relax, start=1)]
+    resolved = fit.get("terms_resolved")
+    n = len(shown) if not isinstance(resolved, int) or not fit.get("not_resolved") else resolved
+    line = f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}"
+    if shown[:n]:
+        line += "; " + ", ".join(shown[:n])
+    if fit.get("not_resolved"):  # the unresolved terms are shown, but not as results
+        line += f" -- {fit['not_resolved']}"
+        if shown[n:]:
+            line += f" ({', '.join(shown[n:])}: not a result)"
+    return line
 
 
 def step_lines(results: Mapping[str, Any]) -> list[str]:

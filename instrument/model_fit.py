@@ -58,6 +58,13 @@ MAX_POINTS_PER_PASS = 300
 #: from the trajectory's interior of each apart stretch; it bounds how far the fitted geometry
 #: may move from its start before the reduction would matter.
 KEEP_GAP = 0.3e-3
+#: Per unloading model: the relative finite-difference step of the Jacobian and the relative
+#: cost change that ends the fit (None: scipy's defaults). MDR's force moves in small steps as
+#: single elements enter and leave contact: a step near machine precision sees those and not
+#: the slope, and at the noise floor the fit would otherwise oscillate by ~1e-6 of the cost,
+#: far below what moves a parameter by a tenth of its standard error (~1e-4 of the cost).
+DIFF_STEP: dict[str, float | None] = {"cutoff": None, "mdr": 1e-4}
+FTOL: dict[str, float] = {"cutoff": 1e-8, "mdr": 1e-5}
 #: z value of the two-sided 95 % confidence interval.
 Z95 = 1.959963984540054
 
@@ -293,7 +300,12 @@ def _start_moduli(
     problem: _Problem, mu: float, touch: float, lower: float
 ) -> list[float]:
     """(G_e, G_1, tau_1, ...) from non-negative linear least squares on F_v over a log grid of
-    time constants (the model is linear in the moduli before the no-adhesion cutoff)."""
+    time constants (the model is linear in the moduli before the no-adhesion cutoff).
+
+    The cached hereditary integrals are the cutoff model's. With ``unloading="mdr"`` only the
+    samples where the contact grows enter: there MDR is the same linear model (Lee-Radok),
+    while on the receding side its force depends on the moduli through the separation times
+    and the cutoff model's start would be biased (the fit itself runs MDR throughout)."""
     setup = problem.setup
     x_arc, h, delta = problem.geometry(touch, lower)
     i = problem.points.astype(np.intp)
@@ -302,6 +314,9 @@ def _start_moduli(
     psi = -problem.direction * x_arc[i] / h[i]
     resolve = (1.0 - mu * psi) / np.hypot(1.0, psi)
     use = (xp[i] > 0) & (problem.f_v > 0)
+    if setup.unloading != "cutoff":  # growing contact only: where the models are one
+        growing = np.diff(delta, prepend=-np.inf) > 0
+        use &= growing[i]
     if np.count_nonzero(use) < 10:
         raise ConfigError("model fit", int(np.count_nonzero(use)),
                           "too few samples in contact at the start geometry")
@@ -389,7 +404,8 @@ def fit_ladder(
         upper += [np.inf] * setup.terms
         scale += [0.1] * setup.terms
     result = least_squares(problem.residual, np.array(q0), bounds=(lower, upper),
-                           x_scale=np.array(scale), method="trf")
+                           x_scale=np.array(scale), method="trf",
+                           diff_step=DIFF_STEP[setup.unloading], ftol=FTOL[setup.unloading])
     q = result.x
     n = result.fun.size
     half = n // 2
@@ -413,9 +429,18 @@ def fit_ladder(
         rms_v=float(np.sqrt(np.mean((f_v_model - f_v) ** 2))),
         noise_h=noise_h, noise_v=noise_v, n_passes=len(idx_list), n_points=int(half),
         evaluations=problem.evaluations, seconds=time.perf_counter() - started,
-        extra={"lag1_correlation": rho, "covariance_inflation": inflation,
+        extra={"unloading": setup.unloading, "anisotropic": setup.anisotropic,
+               "lag1_correlation": rho, "covariance_inflation": inflation,
                "trajectory_samples": int(kept.size), "status": result.message},
     )
+
+
+def describe_setup(setup: FitSetup) -> str:
+    """The fitted model in words: its unloading model and whether F_h and F_v share G_i."""
+    how = ("G_i fitted separately for F_h (_h) and F_v (_v)" if setup.anisotropic
+           else "one G_i for F_h and F_v")
+    carried = ", history carried across separations" if setup.carry_history else ""
+    return f"{setup.unloading} unloading, {how}{carried}"
 
 
 def _estimates(q: FloatArray, err: FloatArray, setup: FitSetup) -> list[Estimate]:

@@ -13,7 +13,7 @@ import numpy as np
 
 from instrument.contact import FloatArray
 from instrument.ladder_analysis import LadderModel, LadderStep
-from instrument.model_fit import FitSetup, ModelFit
+from instrument.model_fit import FitSetup, ModelFit, describe_setup
 from instrument.report import Column, Section, Table
 from instrument.report_plots import (
     FitPanel,
@@ -83,7 +83,8 @@ def ladder_section(
     if model is not None:
         section.figures += _model_figures(ladder, model, out, prefix)
     if model is not None:
-        section.tables.append(Table("Model fit to all passes (SI; 95 % confidence intervals)",
+        section.tables.append(Table("Model fit to all passes (SI; 95 % confidence intervals; "
+                                    f"{describe_setup(setup)})",
                                     _FIT_COLUMNS, model.fit.rows(), f"{prefix}_model_fit.csv"))
     section.tables += [
         Table("Per (overlap, speed)", _LEVEL_COLUMNS, levels, f"{prefix}_levels.csv"),
@@ -189,7 +190,8 @@ def _model_figures(ladder: LadderStep, model: LadderModel, out: Path,
 
 
 def ladder_summary(ladder: LadderStep, levels: Sequence[dict[str, float]],
-                   fit: ModelFit | None, index: int, name: str) -> list[str]:
+                   fit: ModelFit | None, index: int, name: str,
+                   setup: FitSetup | None = None) -> list[str]:
     """The stdout summary's lines for a ladder: per overlap the chord at the set overlap and,
     per speed, the measured l_g, l_c/l_g and mu; then the fit."""
     speeds = sorted({r["speed_m_s"] for r in levels})
@@ -211,11 +213,11 @@ def ladder_summary(ladder: LadderStep, levels: Sequence[dict[str, float]],
                   f"  {'':<26s}l_c/l_g  " + cells("l_c_over_l_g", 1.0, ".4f"),
                   f"  {'':<26s}mu       " + cells("mu", 1.0, ".4f")]
     if fit is not None:
-        lines += _fit_summary(fit)
+        lines += _fit_summary(fit, setup)
     return lines
 
 
-def _fit_summary(fit: ModelFit) -> list[str]:
+def _fit_summary(fit: ModelFit, setup: FitSetup | None = None) -> list[str]:
     """The model fit's estimates with their 95 % intervals, two a line, and its residuals."""
     parts = []
     for e in fit.estimates:
@@ -228,7 +230,8 @@ def _fit_summary(fit: ModelFit) -> list[str]:
             parts.append(f"mu {e.value:.4g} [{e.lo:.4g}, {e.hi:.4g}]")
         else:
             parts.append(f"{e.name} {e.value:.5g} {e.unit} [{e.lo:.5g}, {e.hi:.5g}]")
-    lines = [f"  model fit to all passes ({fit.n_points} points per force, "
+    model = "" if setup is None else f"{describe_setup(setup)}; "
+    lines = [f"  model fit to all passes ({model}{fit.n_points} points per force, "
              f"{fit.seconds:.1f} s), 95 % CI:"]
     lines += ["    " + "; ".join(parts[i:i + 2]) for i in range(0, len(parts), 2)]
     lines.append(f"    rms residual F_h {fit.rms_h * 1e3:.4f} mN (noise "

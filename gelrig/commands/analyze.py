@@ -24,6 +24,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     analyze.add_argument("--fixed-geometry", action="store_true",
                          help="hold the contact search's touch gap and lower-sphere angle fixed "
                               "in the model fit instead of refining them")
+    # The names of instrument.contact.UNLOADING_MODELS, spelt out: the parser stays light.
+    analyze.add_argument("--unloading", choices=("cutoff", "mdr"), default="cutoff",
+                         help="unloading model of the shear model fit: cutoff (the paper's "
+                              "no-adhesion cutoff, default) or mdr (dimensionality reduction, "
+                              "docs/decisions/0150)")
+    analyze.add_argument("--anisotropic", action="store_true",
+                         help="fit the relaxation moduli G_i separately for F_h and F_v (the "
+                              "paper's anisotropy, docs/decisions/0142); default: one set")
     analyze.set_defaults(handler=run)
 
 
@@ -34,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     r1 = paper.R1_SHEAR if args.r1 is None else args.r1
     r2 = paper.R2_SHEAR if args.r2 is None else args.r2
     result = analyze_run(args.run_dir, args.out, r1=r1, r2=r2, terms=args.terms,
-                         fit_model=not args.no_model_fit, fit_geometry=not args.fixed_geometry)
+                         fit_model=not args.no_model_fit, fit_geometry=not args.fixed_geometry,
+                         unloading=args.unloading, anisotropic=args.anisotropic)
     print(result.summary)
     if result.problems:
         print(f"gelrig: warning: {args.run_dir} is incomplete; analysed what is there "

@@ -200,9 +200,15 @@ def test_a_fault_in_the_stage_shows_the_message_and_stops_motion(qtbot, open_win
     assert wait_finished(qtbot, window) == RunState.FAILED
     box = window.last_message
     assert box is not None and box.isVisible()
-    assert "InstrumentTimeout" in box.text()
+    # in the scientist's words with the next action; the wire detail in the log pane only
+    assert "InstrumentTimeout" not in box.text()
+    assert "stage controller did not answer in time" in box.text()
+    assert "Disconnect and Connect" in box.text()
+    assert "InstrumentTimeout" in window.log.toPlainText()
+    assert "InstrumentTimeout" not in window.statusBar().currentMessage()
     assert "STOP SENT, NOT CONFIRMED: stage unreachable" in box.text()  # the truth, no more
     assert window.banner.state == "tripped" and "fault" in window.banner.text()
+    assert "InstrumentTimeout" not in window.banner.text()
     assert sim.velocity_at(clock.now()) == 0.0
     t = clock.now()
     qtbot.wait(200)

@@ -136,3 +136,54 @@ def test_stored_fits_say_when_a_second_term_is_not_resolved():
     lines = [line for line in stored_summary(meta).splitlines() if "fit:" in line]
     assert len(lines) == 2 and "not resolved" not in lines[0]
     assert lines[1].endswith("-- second term not resolved: BIC improvement -20 < 10")
+    assert "G_1 625 Pa" in lines[1]  # the resolved term is a result
+
+
+def test_a_term_the_data_do_not_resolve_is_not_shown_as_a_result():
+    from gui.runview import stored_summary
+
+    fit = {"G_e": 7840.0, "relax": [{"G": 46.7, "tau": 114.0}], "terms_resolved": 0,
+           "not_resolved": "first term not resolved: BIC improvement -5.94 < 10"}
+    meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": [fit]}}]}
+    (line,) = [x for x in stored_summary(meta).splitlines() if "fit:" in x]
+    head, _, tail = line.partition(" -- ")
+    assert "G_1" not in head and "G_e 7.84 kPa" in head
+    assert tail == ("first term not resolved: BIC improvement -5.94 < 10 "
+                    "(G_1 46.7 Pa, tau_1 114 s: not a result)")
+
+
+@pytest.mark.parametrize("pace, wall", [(1.0, ""), (10.0, " at 10x)"), (math.inf, "fast as")])
+def test_the_progress_line_numbers_steps_once_and_states_the_wall_time_only_when_it_differs(
+        qtbot, pace, wall):
+    from gui.protocol_panel import ProtocolPanel
+
+    panel = ProtocolPanel()
+    qtbot.addWidget(panel)
+    panel.set_rig("compression", CompressionLimits(), connected=True)
+    panel.set_table(protocol(hold="100 s").table, "<test>")
+    panel.set_pace(pace, real_time=False)
+    panel.show_progress(Progress(0.0, 1, 0.5, 50.0, 40.0, "hold"), "ramp and hold")
+    text = panel.status.text()
+    assert text.startswith("step 1 ramp and hold (steps 0–1): hold — ETA ")
+    assert " of 0" not in text  # one numbering: the run's index, never 'step 1 of 0-1'
+    if wall:
+        assert wall in text
+    else:  # at 1x lab time is wall time: no second figure
+        assert text.endswith("lab time") and "≈" not in text
+
+
+@pytest.mark.parametrize("kind", ["compression", "shear"])
+def test_manual_rows_keep_their_height_and_the_tare_time_says_what_it_is(qtbot, kind):
+    from gui.manual import ManualPanel
+
+    panel = ManualPanel()
+    qtbot.addWidget(panel)
+    panel.set_kind(kind)
+    panel.resize(400, 1400)  # far taller than the rows need
+    panel.show()
+    qtbot.waitExposed(panel)
+    lowest = max(b.mapTo(panel, b.rect().bottomLeft()).y() for b in panel.buttons.values())
+    assert lowest < 0.4 * panel.height()  # the rows stay together at the top
+    if kind == "compression":
+        assert panel.entries["tare"].text().startswith("average over ")
+        assert panel.entries["tare"].value() == pytest.approx(1.0)
