@@ -45,6 +45,9 @@ MIN_BINS = 30
 _GRID_BINS = 200
 #: ... and it runs on every this many refits (the others start from the last refit only).
 GRID_EVERY = 4
+#: Model evaluations a refit's least squares may take (a warm start needs a few; a term
+#: the data do not yet support can wander for hundreds, and the next refit tries again).
+MAX_EVALUATIONS = 60
 #: Points the planned-end forecast samples the model at.
 _FORECAST_POINTS = 400
 _ORDINAL = {1: "first", 2: "second"}
@@ -222,8 +225,10 @@ def _fit_exact(tb: FloatArray, gb: FloatArray, n: FloatArray, within: float, ter
         return w[:, None] * _jacobian(p, tb, terms)
 
     lower = [0.0] + [0.0, 1e-12] * terms
-    res = least_squares(residual, np.maximum(start, np.array(lower) + 1e-12), jac=jacobian,
-                        bounds=(lower, np.inf), x_scale="jac")
+    with np.errstate(over="ignore", invalid="ignore"):  # wild trial steps of a 2-term fit
+        res = least_squares(residual, np.maximum(start, np.array(lower) + 1e-12),
+                            jac=jacobian, bounds=(lower, np.inf), x_scale="jac",
+                            max_nfev=MAX_EVALUATIONS)
     p = res.x
     total = float(n.sum())
     rss = within + float(np.sum(res.fun ** 2))
