@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
 from instrument.analysis import (
+    MAX_CONDITION,
     MIN_HOLD_SAMPLES,
     RelaxationFit,
     _grid_start,
@@ -48,6 +49,8 @@ GRID_EVERY = 4
 #: Model evaluations a refit's least squares may take (a warm start needs a few; a term
 #: the data do not yet support can wander for hundreds, and the next refit tries again).
 MAX_EVALUATIONS = 60
+#: Points of the bin means and of the fitted curve a state carries for drawing.
+DRAW_POINTS = 300
 #: Points the planned-end forecast samples the model at.
 _FORECAST_POINTS = 400
 _ORDINAL = {1: "first", 2: "second"}
@@ -73,6 +76,11 @@ class LiveFitState:
     full_relax: tuple[RelaxationTerm, ...] = ()
     full_stderr: dict[str, float] = field(default_factory=dict)
     full_g_e: float = math.nan
+    #: for drawing: G(t) bin means (at most :data:`DRAW_POINTS`; s, Pa) ...
+    data: tuple[FloatArray, FloatArray] = (np.empty(0), np.empty(0))
+    #: ... and the reported fit on a grid over the hold with its standard deviation (s, Pa,
+    #: Pa; NaN where the covariance does not determine it)
+    curve: tuple[FloatArray, FloatArray, FloatArray] = (np.empty(0), np.empty(0), np.empty(0))
 
     @property
     def tau(self) -> float:
@@ -197,21 +205,25 @@ class LiveFit:
             return None
         grid = len(self.history) % GRID_EVERY == 0
         fit = fit_binned(tb, gb, n, within, self.terms, self._last, grid=grid)
-        state = self._state(fit, elapsed, tb, n)
+        state = self._state(fit, elapsed, tb, gb, n)
         self.history.append(state)
         return state
 
-    def _state(self, fit: RelaxationFit, elapsed: float, tb: FloatArray, n: FloatArray
-               ) -> LiveFitState:
+    def _state(self, fit: RelaxationFit, elapsed: float, tb: FloatArray, gb: FloatArray,
+               n: FloatArray) -> LiveFitState:
         shown = fit.resolved
         relative = {f"tau_{k}": shown.stderr.get(f"tau_{k}", math.nan) / r.tau
                     for k, r in enumerate(shown.relax, 1)}
         noise = fit.rmse * math.sqrt(fit.n_samples / max(1, fit.n_samples - 1 - 2 * len(fit.relax)))
         horizon = max(self.planned, elapsed)
         forecast = forecast_relative(fit, noise, horizon, self.rate)
+        grid = np.linspace(0.0, elapsed, DRAW_POINTS)
         return LiveFitState(elapsed, self.planned, shown.g_e, shown.relax, dict(shown.stderr),
                             max(fit.terms_resolved, 0), fit.not_resolved, fit.n_samples,
-                            relative, forecast, fit.relax, dict(fit.stderr), fit.g_e)
+                            relative, forecast, fit.relax, dict(fit.stderr), fit.g_e,
+                            bin_means(tb, gb, DRAW_POINTS),
+                            (grid, model(shown.g_e, shown.relax, grid),
+                             band(shown, tb, n, noise, grid)))
 
 
 def _fit_exact(tb: FloatArray, gb: FloatArray, n: FloatArray, within: float, terms: int,
@@ -287,13 +299,35 @@ def fit_binned(tb: FloatArray, gb: FloatArray, n: FloatArray, within: float, ter
     return fit
 
 
+def _params(fit: RelaxationFit) -> FloatArray:
+    return np.array([fit.g_e, *[x for r in fit.relax for x in (r.g, r.tau)]])
+
+
+def band(fit: RelaxationFit, tb: FloatArray, n: FloatArray, noise: float, t: FloatArray
+         ) -> FloatArray:
+    """Standard deviation (Pa) of the fitted curve at ``t``: ``sqrt(diag(J C J^T))`` with the
+    fit's covariance ``C`` from bins ``tb`` with counts ``n`` and white noise ``noise`` (Pa);
+    NaN when the covariance is singular or ill-conditioned."""
+    terms = len(fit.relax)
+    p = _params(fit)
+    jac = np.sqrt(n)[:, None] * _jacobian(p, tb, terms)
+    scale = np.linalg.norm(jac, axis=0)
+    if not np.all(np.isfinite(scale) & (scale > 0)):
+        return np.full(t.shape, math.nan)
+    _, sv, vt = np.linalg.svd(jac / scale, full_matrices=False)
+    if sv[-1] <= 0 or sv[0] / sv[-1] > MAX_CONDITION:
+        return np.full(t.shape, math.nan)
+    at = _jacobian(p, t, terms) / scale @ (vt.T / sv)
+    return np.asarray(noise * np.sqrt(np.sum(at * at, axis=1)), dtype=float)
+
+
 def forecast_relative(fit: RelaxationFit, noise: float, until: float, rate: float
                       ) -> dict[str, float]:
     """Each time constant's relative standard error if the hold ran to ``until`` s at
     ``rate`` Hz with white noise ``noise`` (Pa) and the fitted model were the truth (NaN when
     the covariance would not determine it)."""
     terms = len(fit.relax)
-    p = np.array([fit.g_e, *[x for r in fit.relax for x in (r.g, r.tau)]])
+    p = _params(fit)
     edges = np.linspace(0.0, until, _FORECAST_POINTS + 1)
     t = 0.5 * (edges[:-1] + edges[1:])
     count = max(1.0, until * rate / _FORECAST_POINTS)

@@ -84,3 +84,17 @@ def test_adaptive_hold_is_honest_under_the_papers_noise() -> None:
         assert math.isfinite(z)
     assert inside >= SEEDS - 2
     assert max(ended) < 3000.0
+
+
+def test_band_holds_the_truth_and_narrows_as_the_hold_goes_on() -> None:
+    sim = simulate_hold(paper.PLATES, 1, 3000.0, 100.0, seed=9)
+    early = next(s for s in sim.history if s.elapsed >= 500.0)
+    late = sim.history[-1]
+    for state in (early, late):
+        t, g, sd = state.curve
+        assert t[0] == 0.0 and t[-1] == pytest.approx(state.elapsed)
+        assert np.all(np.isfinite(sd)) and np.all(sd > 0)
+        z = np.abs(g - paper.PLATES.modulus(t)) / sd
+        assert np.mean(z <= 3.0) >= 0.9
+        assert state.data[0].size <= 300
+    assert np.median(late.curve[2]) < 0.5 * np.median(early.curve[2])
