@@ -7,8 +7,6 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-import numpy as np
-
 from instrument.analysis import fit_hold, modulus_history
 from instrument.contact import FloatArray
 from instrument.errors import GelrigError
@@ -138,11 +136,6 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             f"({int(p.hold * p.rate):,} samples), retract "
             f"{p.retract * 1e3:g} mm, fit 1..{int(p.terms)} relaxation terms",
         ]
-        rule = p.stop_rule
-        if rule is not None:
-            lines.append(f"adaptive hold: {rule.min_hold:g} s to {p.hold:g} s (ends when "
-                         f"{rule.describe()}; else at {p.hold:g} s); total "
-                         f"{lab_time(ramp + rule.min_hold)} to {lab_time(ramp + p.hold)}")
         checks = []
         if isinstance(limits, CompressionLimits):
             ok = depth <= limits.max_overlap
@@ -152,6 +145,12 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         back = 2 * p.retract / (limits.fast_speed if isinstance(limits, CompressionLimits)
                                 else 1e-3)
         travel = p.approach + depth + p.retract * 2
+        rule = p.stop_rule
+        if rule is not None:  # the plan's duration is the longest; say the range
+            lines.append(f"adaptive hold: {rule.min_hold:g} s to {p.hold:g} s (ends when "
+                         f"{rule.describe()}; else at {p.hold:g} s); step "
+                         f"{lab_time(ramp + rule.min_hold + back)} to "
+                         f"{lab_time(ramp + p.hold + back)}")
         return StepPlan(ramp + p.hold + back, travel, lines, checks)
 
     def preflight(self, params: RampHoldParams, rig: CompressionRig,
@@ -200,7 +199,7 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             elapsed = ctx.clock.now() - t_start
             ctx.progress(elapsed / (ramp_time + p.hold), elapsed,
                          ramp_time + p.hold - elapsed, "ramp")
-        live = _LiveHold(ctx, p, touch)
+        live = _LiveHold(ctx, p)
         held = rec.dwell(p.hold, progress=True, label="hold", endable=True,
                          after_block=live.block)
         end = live.end(held)
@@ -238,10 +237,9 @@ class _LiveHold:
     """The live fit of one hold: turns each block into G(t), refits when due, publishes a
     :class:`FitUpdate`, and (adaptive hold) says when the rule is met."""
 
-    def __init__(self, ctx: StepContext[CompressionRig], p: RampHoldParams, touch: float):
+    def __init__(self, ctx: StepContext[CompressionRig], p: RampHoldParams):
         self.ctx = ctx
         self.p = p
-        self.touch = touch
         self.rule = p.stop_rule
         self.fit = LiveFit(int(p.terms), p.hold, p.rate)
         self.t0: float | None = None
@@ -264,8 +262,8 @@ class _LiveHold:
             return False
         try:
             state = self.fit.refit(elapsed)
-        except (GelrigError, ValueError, np.linalg.LinAlgError) as exc:
-            log.debug("live refit at %.1f s failed: %s", elapsed, exc)
+        except Exception as exc:  # a failed refit must not end the hold: the next one retries
+            log.debug("live refit at %.1f s failed: %s: %s", elapsed, type(exc).__name__, exc)
             return False
         if state is None:
             return False
