@@ -189,8 +189,9 @@ def _hold(ctx: _Context, step: StepData) -> HoldAnalysis | None:
     ctx.problems.extend(hold_problems(hold, step.index, step.name))
     if not hold.fits:
         return None
-    ctx.sections.append(hold_section(hold, step.index, step.name, ctx.out))
-    ctx.summary.extend(hold_summary(hold, step.index, step.name))
+    ctx.sections.append(hold_section(hold, step.index, step.name, ctx.out, step.results,
+                                     step.params))
+    ctx.summary.extend(hold_summary(hold, step.index, step.name, step.results, step.params))
     return hold
 
 

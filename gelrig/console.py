@@ -3,6 +3,7 @@ event subscriber, and the lines a scientist wants to see when states change."""
 
 from __future__ import annotations
 
+import math
 import threading
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from instrument.units import lab_time
 from protocols.events import (
     Event,
     Fault,
+    FitUpdate,
     InterlockTrip,
     SafeStopped,
     StateChanged,
@@ -22,6 +24,20 @@ from protocols.events import (
 from protocols.events import (
     Progress as ProgressEvent,
 )
+
+
+def fit_line(event: FitUpdate) -> str:
+    """The live fit for the progress line: ``tau 1413 s +- 1.7 % (2 % at end), 1 term``."""
+    st = event.state
+    if not st.relax:
+        return ""
+    rel = st.tau_relative
+    shown = f"{rel * 100:.2g} %" if math.isfinite(rel) else "undetermined"
+    end = st.forecast.get("tau_1", math.nan)
+    at_end = f" ({end * 100:.2g} % at end)" if math.isfinite(end) else ""
+    terms = f"{st.terms_resolved} term{'s' if st.terms_resolved != 1 else ''} resolved"
+    mark = "; target met" if event.met else ""
+    return f"tau {st.tau:.4g} s +- {shown}{at_end}, {terms}{mark}"
 
 
 def _values(values: dict[str, float]) -> str:
@@ -59,6 +75,7 @@ class ConsoleView:
             auto_refresh=False,
         )
         self._task: TaskID | None = None
+        self._fit = ""  # the live fit's line during a hold
         self._lock = threading.RLock()  # say() may be re-entered by a signal handler
 
     def __enter__(self) -> ConsoleView:
@@ -101,9 +118,20 @@ class ConsoleView:
             if event.values:
                 live = f"{live} ({_values(dict(event.values))})" if live else _values(
                     dict(event.values))
+            if self._fit and event.message == "hold":
+                live = f"{live}; {self._fit}"
             self.progress.update(self._task, completed=event.fraction,
                                  eta=lab_time(event.remaining), live=live)
+        elif isinstance(event, FitUpdate):
+            self._fit = fit_line(event)
         elif isinstance(event, StepFinished):
+            self._fit = ""
+            end = event.results.get("hold_end") if isinstance(event.results, dict) else None
+            if end in ("target", "maximum"):
+                what = "target met" if end == "target" else "target not met: the maximum"
+                self.console.print(f"[{lab_time(event.t)}] step {event.index}: adaptive hold "
+                                   f"ended after {event.results.get('held_s', 0):.0f} s "
+                                   f"({what})", highlight=False)
             if self._task is not None:
                 done = event.status == "completed"
                 self.progress.update(self._task, completed=1.0 if done else None, eta="-",

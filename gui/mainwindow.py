@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from gui import export, wheelguard
+from gui.fit_panel import FitPanel
 from gui.header import Header
 from gui.instruments import InstrumentsPanel
 from gui.interlocks import InterlockBanner
@@ -112,6 +113,7 @@ class MainWindow(QMainWindow):
         self.plot_stack.addWidget(self.compression_plots)
         self.plot_stack.addWidget(self.shear_plots)
         self.idle_plots = IdlePlots()
+        self.fit_panel = FitPanel()
         self.header = Header(self.banner)
         self.stop_button = self.header.stop_button
         self.report_button = self.header.report_button
@@ -189,6 +191,7 @@ class MainWindow(QMainWindow):
         self.plot_tabs = QTabWidget()
         self.plot_tabs.addTab(self.plot_stack, "Run")
         self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
+        self.plot_tabs.addTab(self.fit_panel, "Live fit")
         right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(self.plot_tabs)
         right.addWidget(self.log)
@@ -512,6 +515,7 @@ class MainWindow(QMainWindow):
             self.close()
 
     def _on_event(self, event: object) -> None:
+        self.fit_panel.on_event(event)
         if isinstance(event, StepStarted):
             self._step_names[event.index] = event.name
             self.log.add(f"step {event.index} started: {event.name} [{event.kind}]")

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from instrument.contact import FloatArray
+from instrument.live_fit import LiveFitState
 from protocols.safestop import SafeState
 
 log = logging.getLogger(__name__)
@@ -79,6 +80,19 @@ class Progress(Event):
     remaining: float
     message: str = ""
     values: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FitUpdate(Event):
+    """A refit of the live relaxation fit during step ``index``'s hold
+    (``instrument.live_fit.LiveFitState``: parameters, standard errors, terms resolved, each
+    time constant's relative standard error now and forecast at the planned end); ``met``:
+    this refit meets the adaptive hold's target, ``ending``: the hold ends on it."""
+
+    index: int
+    state: LiveFitState
+    met: bool = False
+    ending: bool = False
 
 
 @dataclass(frozen=True)

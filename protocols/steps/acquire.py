@@ -10,6 +10,7 @@ crossing is seen within one sample period of happening.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -174,11 +175,13 @@ class ForceRecorder:
             self.read()
 
     def dwell(self, duration: float, progress: bool = False, label: str = "",
-              block_time: float = 4.0, endable: bool = False) -> float:
+              block_time: float = 4.0, endable: bool = False,
+              after_block: Callable[[dict[str, FloatArray]], bool] | None = None) -> float:
         """Keep reading for ``duration`` seconds of clock time, in blocks of up to
         ``block_time`` (nothing moves, so blocks can be long; they still shrink near a limit).
         ``endable``: a hold a person may end early (``RunControl.end_hold``: at the end of
-        the current block, its data kept). Returns the clock time it lasted."""
+        the current block, its data kept). ``after_block`` sees every block read and ends the
+        dwell by returning True (an adaptive hold). Returns the clock time it lasted."""
         clock = self.ctx.clock
         control = self.ctx.control
         start = clock.now()
@@ -190,7 +193,9 @@ class ForceRecorder:
         try:
             while clock.now() < end and not (endable and control.hold_end_requested):
                 remaining = max(1, math.ceil((end - clock.now()) * self.rate))
-                self.read(n_max=min(n_hold, remaining))
+                data = self.read(n_max=min(n_hold, remaining))
+                if after_block is not None and after_block(data):
+                    break
                 now = clock.now()
                 if progress and now >= next_report:
                     self.ctx.progress((now - start) / duration, now - start, end - now, label,

@@ -7,13 +7,17 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from instrument.analysis import fit_hold
+from instrument.analysis import fit_hold, modulus_history
+from instrument.contact import FloatArray
 from instrument.errors import GelrigError
-from instrument.fields import Field, param
+from instrument.fields import Field, Where, param
 from instrument.hold import find_hold
 from instrument.hold_analysis import measured_overlap
+from instrument.live_fit import LiveFit, StopRule
+from instrument.units import lab_time
 from protocols.caps import stage_position_error, stage_speed_error
 from protocols.context import StepContext
+from protocols.events import FitUpdate
 from protocols.rig import CompressionLimits, CompressionRig
 from protocols.steps.acquire import COLUMNS, ForceRecorder
 from protocols.steps.base import (
@@ -53,6 +57,30 @@ class RampHoldParams(StepParams):
                                         "of the sphere"))
     terms: float = param(Field("terms", "", 2, 1, 2, integer=True,
                                help="relaxation terms fitted (1 and up to this)"))
+    until: float | None = param(Field(
+        "until", "", None, 0.0, 0.5, lo_open=True, optional=True,
+        help="adaptive hold: end once every time constant's relative standard error is at "
+             "most this (e.g. 0.02) on two refits in a row; hold is then the maximum"))
+    until_terms: float = param(Field(
+        "until_terms", "", 1, 1, 2, integer=True,
+        help="adaptive hold: terms the data must resolve before it may end (at most terms)"))
+    min_hold: float = param(Field("min_hold", "s", 0.0, 0.0, 7 * 86400.0,
+                                  help="adaptive hold: shortest hold (at most hold)"))
+
+    def validate(self, where: Where) -> None:
+        if self.min_hold > self.hold:
+            raise where.error("min_hold", self.min_hold,
+                              f"at most hold ({self.hold:g} s), the adaptive hold's maximum")
+        if self.until_terms > self.terms:
+            raise where.error("until_terms", self.until_terms,
+                              f"at most terms ({int(self.terms)}), the terms fitted")
+
+    @property
+    def stop_rule(self) -> StopRule | None:
+        """The adaptive hold's rule, or None for a hold of fixed length (the default)."""
+        if self.until is None:
+            return None
+        return StopRule(self.until, int(self.until_terms), self.min_hold)
 
     @property
     def depth(self) -> float:
@@ -79,6 +107,11 @@ class RampHoldResult(StepResult):
     measured_depth_m: float = float("nan")
     #: lab seconds the hold lasted (less than asked when a person ended it early)
     held_s: float | None = None
+    #: the live fit's refits during the hold (``LiveFitState.as_dict``), oldest first
+    live_fits: list[dict[str, Any]] = field(default_factory=list)
+    #: why the hold ended: "planned" (fixed hold), "target" (adaptive, met), "maximum"
+    #: (adaptive, not met), "requested" (a person ended it)
+    hold_end: str = ""
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
@@ -112,6 +145,12 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         back = 2 * p.retract / (limits.fast_speed if isinstance(limits, CompressionLimits)
                                 else 1e-3)
         travel = p.approach + depth + p.retract * 2
+        rule = p.stop_rule
+        if rule is not None:  # the plan's duration is the longest; say the range
+            lines.append(f"adaptive hold: {rule.min_hold:g} s to {p.hold:g} s (ends when "
+                         f"{rule.describe()}; else at {p.hold:g} s); step "
+                         f"{lab_time(ramp + rule.min_hold + back)} to "
+                         f"{lab_time(ramp + p.hold + back)}")
         return StepPlan(ramp + p.hold + back, travel, lines, checks)
 
     def preflight(self, params: RampHoldParams, rig: CompressionRig,
@@ -160,8 +199,14 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             elapsed = ctx.clock.now() - t_start
             ctx.progress(elapsed / (ramp_time + p.hold), elapsed,
                          ramp_time + p.hold - elapsed, "ramp")
-        held = rec.dwell(p.hold, progress=True, label="hold", endable=True)
-        if held < p.hold - 1.0 / p.rate:
+        live = _LiveHold(ctx, p)
+        held = rec.dwell(p.hold, progress=True, label="hold", endable=True,
+                         after_block=live.block)
+        end = live.end(held)
+        if end == "target":
+            log.info("adaptive hold ended after %.1f s of at most %g s: %s met", held, p.hold,
+                     live.rule.describe() if live.rule else "")
+        elif held < p.hold - 1.0 / p.rate:
             log.warning("hold ended early on request after %.1f s of %g s; its data is kept",
                         held, p.hold)
         cols = rec.columns()
@@ -184,4 +229,54 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
             except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
                 fits.append({"error": str(exc)})
         return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits,
-                              measured.first_touch, measured.held, held)
+                              measured.first_touch, measured.held, held,
+                              [s.as_dict() for s in live.fit.history], end)
+
+
+class _LiveHold:
+    """The live fit of one hold: turns each block into G(t), refits when due, publishes a
+    :class:`FitUpdate`, and (adaptive hold) says when the rule is met."""
+
+    def __init__(self, ctx: StepContext[CompressionRig], p: RampHoldParams):
+        self.ctx = ctx
+        self.p = p
+        self.rule = p.stop_rule
+        self.fit = LiveFit(int(p.terms), p.hold, p.rate)
+        self.t0: float | None = None
+        self.met = False
+
+    def block(self, data: dict[str, FloatArray]) -> bool:
+        """Take one block of the hold; True once the adaptive hold may end."""
+        t = data["t_s"]
+        if not t.size:
+            return False
+        if self.t0 is None:
+            self.t0 = float(t[0])
+        delta = data["delta_m"]
+        ok = delta > 0
+        if ok.any():
+            g = modulus_history(data["force_N"][ok], delta[ok], self.p.diameter / 2)
+            self.fit.add(t[ok] - self.t0, g)
+        elapsed = float(t[-1]) - self.t0 + 1.0 / self.p.rate
+        if not self.fit.due(elapsed):
+            return False
+        try:
+            state = self.fit.refit(elapsed)
+        except Exception as exc:  # a failed refit must not end the hold: the next one retries
+            log.debug("live refit at %.1f s failed: %s: %s", elapsed, type(exc).__name__, exc)
+            return False
+        if state is None:
+            return False
+        self.met = self.rule is not None and self.rule.done(self.fit.history)
+        met_now = self.rule.met(state) if self.rule is not None else False
+        self.ctx.bus.publish(FitUpdate(self.ctx.clock.now(), self.ctx.index, state, met_now,
+                                       self.met))
+        return self.met
+
+    def end(self, held: float) -> str:
+        """Why the hold ended."""
+        if self.met:
+            return "target"
+        if held < self.p.hold - 1.0 / self.p.rate:
+            return "requested"
+        return "maximum" if self.rule is not None else "planned"

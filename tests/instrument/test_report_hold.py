@@ -46,3 +46,33 @@ def test_summary_and_section(tmp_path):
     # a noiseless G(t) of the fitted model: only the curvature within a bin is left
     assert max(abs(float(r["residual_1_Pa"])) for r in residuals.rows) < 1e-3
     assert not math.isnan(float(residuals.rows[0]["G_Pa"]))
+
+
+def _live_results():
+    from instrument import paper
+    from instrument.live_fit import StopRule
+    from instrument.live_fit_sim import simulate_hold
+
+    sim = simulate_hold(paper.PLATES, 1, 3000.0, 100.0, seed=4, rule=StopRule(0.02))
+    results = {"live_fits": [s.as_dict() for s in sim.history], "hold_end": sim.reason,
+               "held_s": sim.ended}
+    return sim, results, {"hold": 3000.0, "until": 0.02, "until_terms": 1}
+
+
+def test_summary_and_section_keep_the_live_fit_and_how_the_hold_ended(tmp_path):
+    sim, results, params = _live_results()
+    lines = hold_summary(analysis(), 1, "hold", results, params)
+    end = next(line for line in lines if "adaptive hold" in line)
+    assert f"after {sim.ended:.0f} s of at most 3000 s" in end
+    assert f"{len(sim.history)} refits" in end
+    section = hold_section(analysis(), 1, "hold", tmp_path, results, params)
+    live = section.tables[-1]
+    assert len(live.rows) == len(sim.history)
+    assert [r["elapsed_s"] for r in live.rows] == [s.elapsed for s in sim.history]
+    assert live.rows[-1]["tau_1_s"] == sim.history[-1].tau
+    assert any("Adaptive hold ended on its target" in p for p in section.paragraphs)
+
+
+def test_a_run_without_a_live_fit_reports_as_before(tmp_path):
+    assert hold_summary(analysis(), 1, "hold", {}, {}) == hold_summary(analysis(), 1, "hold")
+    assert len(hold_section(analysis(), 1, "hold", tmp_path, {}, {}).tables) == 2
