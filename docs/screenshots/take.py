@@ -1,0 +1,64 @@
+"""Screenshot of gelrig's main window on a simulated rig, in a real window.
+
+    xvfb-run -a -s "-screen 0 1440x900x24" python docs/screenshots/take.py OUT.png \
+        [compression|shear] [idle|running SECONDS|finished]
+
+``running`` starts the rig's paper protocol at 100x and shoots after SECONDS of wall time;
+``finished`` runs it as fast as possible and shoots the finished run. Runs go to a
+temporary folder. Used for the README's screenshots.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+import time
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+from PySide6.QtWidgets import QApplication
+
+from gelrig.commands.gui import make_services
+from gui.mainwindow import MainWindow
+from protocols.rigfile import default_rig
+from protocols.spec import paper_protocol
+
+
+def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str = "8") -> None:
+    app = QApplication(sys.argv[:1])
+
+    def pump(done: Callable[[], bool], timeout: float) -> None:
+        end = time.monotonic() + timeout
+        while not done() and time.monotonic() < end:
+            app.processEvents()
+            time.sleep(0.01)
+
+    with tempfile.TemporaryDirectory() as runs:
+        window = MainWindow(make_services(default_rig(kind), math.inf, Path(runs)))
+        window.show()
+        window.start()
+        pump(lambda: window.session.rig is not None, 60)
+        pump(lambda: False, 1.0)
+        if mode != "idle":
+            path = paper_protocol(kind)
+            window.protocol.set_table(tomllib.loads(path.read_text()), str(path))
+            pump(window.protocol.run_button.isEnabled, 120)
+            if mode == "running":
+                window.pace_box.setCurrentText("100x")
+            window.protocol.run_button.click()
+            if mode == "running":
+                pump(lambda: False, float(seconds))
+            else:
+                pump(lambda: not window.session.running, 900)
+                pump(lambda: False, 1.0)
+        window.grab().save(out)
+        if window.session.running:
+            window.session.abort("screenshot taken")
+            pump(lambda: not window.session.running, 60)
+        window.close()
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
