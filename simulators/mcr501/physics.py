@@ -19,8 +19,10 @@ direction, so the mu term is dropped (``s = 0``; the frame of a clockwise pass i
 Integration runs on a grid fixed by the motion alone: each piece between breakpoints (command
 times, ramp ends, lift arrivals, trips) is cut into steps of at most ``substep_travel`` of
 travel and ``max_substep`` of time, anchored at the piece start, plus the stream's sample
-times. How often a client polls therefore never changes the result; a reading between grid
-nodes is a non-committing step from the last node.
+times. How often a client polls therefore never changes the nodes; a reading between grid
+nodes is a non-committing step from the last node. A streaming read integrates LOOKAHEAD
+seconds beyond itself and later reads are served from it (docs/decisions/0090 addendum 3);
+a command, a single reading or a stream change first returns to the node before it.
 """
 
 from __future__ import annotations
