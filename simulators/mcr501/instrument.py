@@ -10,7 +10,6 @@ to the next request.
 from __future__ import annotations
 
 import math
-import operator
 import threading
 from collections import deque
 
@@ -25,8 +24,6 @@ from simulators.mcr501.physics import ShearCell
 
 _RPM = 2.0 * math.pi / 60.0
 _MOTION = frozenset({"rotate", "stop", "hold", "set_gap"})
-#: A stream sample's true values in record order.
-_SAMPLE_ROW = operator.attrgetter("t", "angle", "torque", "normal_force", "gap")
 _THOUSAND = np.array(1e3)
 
 
@@ -96,8 +93,8 @@ class MCR501Simulator:
             return [error_line(10, f"unknown command {command.request.key}")]
         if command.name in _MOTION:
             self.cell.commit(now)  # a motion command is a breakpoint: integrate exactly to it
-        else:
-            self.cell.advance(now)
+        else:  # a reading: served from the look-ahead while the stream runs
+            self.cell.advance(now, ahead=True)
         trip = self._unreported_trip()
         if trip is not None:
             return [trip]
@@ -231,7 +228,7 @@ class MCR501Simulator:
         # slower path for a Python float operand (a read carries tens of points).
         t_noise, f_noise, t_res, f_res = self._noise_figures()
         z = self._stream_rng.standard_normal(2 * len(batch))
-        t, angle, torque, force, gap = np.array(list(map(_SAMPLE_ROW, batch))).T.copy()
+        t, angle, torque, force, gap = np.array(batch, dtype=np.float64).T.copy()
         torque += t_noise * z[0::2]
         force += f_noise * z[1::2]
         # np.rint rounds half to even, as round() does in _quantize; np.degrees is

@@ -19,14 +19,19 @@ direction, so the mu term is dropped (``s = 0``; the frame of a clockwise pass i
 Integration runs on a grid fixed by the motion alone: each piece between breakpoints (command
 times, ramp ends, lift arrivals, trips) is cut into steps of at most ``substep_travel`` of
 travel and ``max_substep`` of time, anchored at the piece start, plus the stream's sample
-times. How often a client polls therefore never changes the result; a reading between grid
-nodes is a non-committing step from the last node.
+times. How often a client polls therefore never changes the nodes; a reading between grid
+nodes is a non-committing step from the last node. A streaming read integrates LOOKAHEAD
+seconds beyond itself and later reads are served from it (docs/decisions/0090 addendum 3);
+a command, a single reading or a stream change first returns to the node before it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from bisect import bisect_right
+from dataclasses import dataclass, field
+from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,6 +46,8 @@ CHUNK = 20_000
 #: Trip codes (as in the command table's error codes).
 TRIP_OVERLOAD = 31
 TRIP_TORQUE = 32
+#: Lab time (s) a streaming read integrates ahead of itself (docs/decisions/0090 addendum 3).
+LOOKAHEAD = 16.0
 
 
 @dataclass(frozen=True)
@@ -54,9 +61,9 @@ class Trip:
     gap: float
 
 
-@dataclass(frozen=True)
-class Sample:
-    """True (noise-free) values at one stream sample time."""
+class Sample(NamedTuple):
+    """True (noise-free) values at one stream sample time (a named tuple: made by the
+    thousand per read, and a batch of them is one ``np.array`` call)."""
 
     t: float
     angle: float
@@ -74,6 +81,29 @@ class Forces:
     f_h: float
     f_v: float
     torque: float
+
+
+#: Sample from a tuple of its five values: tuple.__new__ at C speed (the named tuple's own
+#: constructor is a Python function; 159,000 samples in a paper shear run).
+_as_sample = partial(tuple.__new__, Sample)
+
+
+@dataclass
+class _Ahead:
+    """Nodes integrated beyond the last read: the state to return to, and the samples held
+    back until the clock reaches them (absolute time, sample, stream index)."""
+
+    start: tuple[float, float, tuple[float, float, float], tuple[object, object],
+                 tuple[float, float, int] | None]
+    until: float
+    times: list[float] = field(default_factory=list)
+    samples: list[Sample] = field(default_factory=list)
+    ks: list[int] = field(default_factory=list)
+    released: int = 0
+
+
+class _Abandon(Exception):
+    """A look-ahead block reached a limit: integrate without look-ahead instead."""
 
 
 def _sorted_unique(values: FloatArray) -> FloatArray:
@@ -113,6 +143,14 @@ class ShearCell:
         # advance(t) has integrated every node up to this time, for the current grid (motion
         # pieces and stream); reset by whatever changes the grid.
         self._covered = -math.inf
+        # Look-ahead of streaming reads: the nodes integrated beyond the clock, where their
+        # samples are collected instead of ``samples``, samples already handed out (stream
+        # index below this is not recorded again after a rewind), and whether a limit came
+        # near (then no look-ahead until the grid changes).
+        self._ahead: _Ahead | None = None
+        self._pending: _Ahead | None = None
+        self._drop_k = 0
+        self._ahead_off = False
 
     # -- commands (each is a breakpoint of the motion) --------------------------------------
 
@@ -120,19 +158,20 @@ class ShearCell:
         """New set speed (rad/s, + clockwise) from ``t``."""
         self.commit(t)
         self.spin = self.spin.command(t, omega)
-        self._covered = -math.inf
+        self._grid_changed()
 
     def set_gap(self, t: float, gap: float) -> None:
         """New lift target (m) from ``t``."""
         self.commit(t)
         self.lift = self.lift.command(t, gap)
-        self._covered = -math.inf
+        self._grid_changed()
 
     def start_stream(self, t: float, interval: float) -> None:
         """Sample at ``t + k interval``, k = 1, 2, ...; earlier samples are discarded."""
         self.advance(t)
         self._stream = (t, interval, 1)
-        self._covered = -math.inf
+        self._drop_k = 0
+        self._grid_changed()
         self.samples.clear()
         self.overflowed = False
 
@@ -140,9 +179,13 @@ class ShearCell:
         """Stop sampling at ``t``; unread samples and the overflow flag are cleared."""
         self.advance(t)
         self._stream = None
-        self._covered = -math.inf
+        self._grid_changed()
         self.samples.clear()
         self.overflowed = False
+
+    def _grid_changed(self) -> None:
+        self._covered = -math.inf
+        self._ahead_off = False
 
     @property
     def streaming(self) -> bool:
@@ -229,7 +272,7 @@ class ShearCell:
         """Integrate exactly to ``t`` and start a new piece there."""
         self.advance(t, exact=True)
         self._anchor = t
-        self._covered = -math.inf
+        self._grid_changed()
 
     def _next_breakpoint(self) -> float:
         ends = [b for b in (self.spin.ramp_end, self.lift.end) if b > self._anchor]
@@ -252,10 +295,93 @@ class ShearCell:
         times = t_start + interval * np.arange(k_next, k_hi + 1, dtype=np.float64)
         return times[(times > lo) & (times <= hi)]
 
-    def advance(self, t: float, exact: bool = False) -> None:
-        """Integrate every grid node up to ``t`` (and ``t`` itself if ``exact``)."""
+    def advance(self, t: float, exact: bool = False, ahead: bool = False) -> None:
+        """Integrate every grid node up to ``t`` (and ``t`` itself if ``exact``).
+
+        ``ahead`` (a streaming read): integrate up to ``t + LOOKAHEAD`` in one pass and hand
+        out the samples up to ``t``; the next reads are then served from what was integrated.
+        The nodes are those of the grid either way (fixed by the motion and the stream), so
+        only the blocks the contact is stepped in differ (rounding, docs/decisions/0090
+        addendum 3). Anything else (a command, a single reading, the stream started or
+        stopped) first returns to the last node before the look-ahead.
+        """
+        ahead = ahead and not exact
+        if self._ahead is not None:
+            if ahead and t <= self._ahead.until:
+                self._release(t)
+                return
+            if ahead:  # every held sample is due: continue from where the look-ahead ended
+                self._release(math.inf)
+                self._ahead = None
+            else:
+                self._rewind()
         if not exact and t <= self._covered:
             return  # every node up to t is integrated; the grid has not changed since
+        if ahead and self._stream is not None and not self._ahead_off and self._look_ahead(t):
+            return
+        self._integrate_to(t, exact)
+        if not exact:
+            self._covered = t
+
+    def _look_ahead(self, t: float) -> bool:
+        """Integrate to ``t + LOOKAHEAD`` collecting samples aside; False (state unchanged)
+        if a block came beyond a limit (a trip is then found without look-ahead)."""
+        until = t + LOOKAHEAD
+        start = (self.t_int, self._anchor, self._prev, self._save(), self._stream)
+        self._pending = _Ahead(start, until)
+        try:
+            self._integrate_to(until, exact=False)
+        except _Abandon:
+            self._return_to(start)
+            self._ahead_off = True
+            return False
+        finally:
+            ahead, self._pending = self._pending, None
+        self._ahead = ahead
+        self._stream = start[4]  # the stream index advances as samples are handed out
+        self._covered = until
+        self._release(t)
+        return True
+
+    def _release(self, t: float) -> None:
+        """Move the held samples up to ``t`` into ``samples`` (with the overflow rule)."""
+        a = self._ahead
+        assert a is not None and self._stream is not None
+        i = bisect_right(a.times, t, lo=a.released)
+        if i == a.released:
+            return
+        self.samples.extend(a.samples[a.released:i])
+        t_start, interval, _ = self._stream
+        k_next = a.ks[i - 1] + 1
+        self._stream = (t_start, interval, k_next)
+        # A grid node within rounding of a sample time is a sample too (two of one index);
+        # one integrated after a read is not (its index is below the stream's next): as
+        # without look-ahead, a read between the two keeps only the first.
+        while i < len(a.ks) and a.ks[i] < k_next:
+            i += 1
+        a.released = i
+        excess = len(self.samples) - self.cfg.stream_buffer
+        if excess > 0:
+            del self.samples[:excess]
+            self.overflowed = True
+
+    def _rewind(self) -> None:
+        """Back to the state before the look-ahead; samples handed out stay handed out."""
+        a = self._ahead
+        assert a is not None
+        self._ahead = None
+        if self._stream is not None:
+            self._drop_k = self._stream[2]
+        self._return_to(a.start)
+
+    def _return_to(self, start: tuple[float, float, tuple[float, float, float],
+                                       tuple[object, object],
+                                       tuple[float, float, int] | None]) -> None:
+        self.t_int, self._anchor, self._prev, saved, self._stream = start
+        self._restore(saved)
+        self._covered = -math.inf
+
+    def _integrate_to(self, t: float, exact: bool) -> None:
         while self.t_int < t:
             a = self._anchor
             b = self._next_breakpoint()
@@ -282,8 +408,6 @@ class ShearCell:
                 self._anchor = b
             if not full and not reach_b:
                 break
-        if not exact:
-            self._covered = t
 
     def _integrate(self, nodes: FloatArray) -> None:
         phi, omega = self.spin.at(nodes)
@@ -303,6 +427,8 @@ class ShearCell:
                   and float(abs_fv.max()) <= cfg.normal_force_range
                   and float(abs_m.max()) <= cfg.torque_range)
         tripped = np.empty(0, dtype=np.intp)
+        if not within and self._pending is not None:
+            raise _Abandon
         if not within:
             p_delta, p_fv, p_m = (
                 np.concatenate(([p], v[:-1]))
@@ -349,9 +475,21 @@ class ShearCell:
         atol = 1e-9 * max(1.0, interval)
         hit = np.flatnonzero((k >= k_next) & (np.abs(t - (t_start + k * interval)) <= atol))
         if hit.size:
-            self.samples.extend(map(Sample, (t[hit] - t_start).tolist(), phi[hit].tolist(),
-                                    torque[hit].tolist(), f_v[hit].tolist(), gap[hit].tolist()))
-            self._stream = (t_start, interval, int(k[hit[-1]]) + 1)
+            k_last = int(k[hit[-1]]) + 1
+            if k_next < self._drop_k:  # after a rewind: handed out already
+                hit = hit[k[hit] >= self._drop_k]
+            self._stream = (t_start, interval, k_last)
+        if hit.size:
+            new = map(_as_sample, zip((t[hit] - t_start).tolist(), phi[hit].tolist(),
+                                      torque[hit].tolist(), f_v[hit].tolist(),
+                                      gap[hit].tolist(), strict=True))
+            held = self._pending
+            if held is not None:
+                held.samples.extend(new)
+                held.times.extend(t[hit].tolist())
+                held.ks.extend(k[hit].astype(np.int64).tolist())
+                return
+            self.samples.extend(new)
         excess = len(self.samples) - self.cfg.stream_buffer
         if excess > 0:
             del self.samples[:excess]

@@ -197,6 +197,9 @@ class SimTask:
     gen_pos: int = 0
     hist: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
     hist_start: int = 0
+    # The storage ``hist`` is a view of (room to append without copying what is kept).
+    hist_buf: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+    hist_off: int = 0
     on_demand_next: float = -math.inf
 
     def acquired(self, now: float) -> int:
@@ -412,8 +415,8 @@ class SimulatedUsb6001:
                              f"{task.name}\nAnother analog input task is running.")
         task.buffer_size = self._buffer_size(task)
         task.read_pos, task.overflowed, task.auto_started = 0, False, False
-        task.gen_pos, task.hist_start = 0, 0
-        task.hist = np.empty((n_chan, 0))
+        task.gen_pos, task.hist_start, task.hist_off = 0, 0, 0
+        task.hist = task.hist_buf = np.empty((n_chan, 0))
         task.t0 = self.clock.now()
         task.running = True
 
@@ -595,15 +598,8 @@ class SimulatedUsb6001:
             first = max(task.gen_pos, end - keep)
             dt = 1.0 / task.rate
             block = self._generate(task, task.t0 + first * dt, dt, end - first)
-            if first > task.gen_pos:
-                task.hist, task.hist_start = block, first
-            else:
-                task.hist = np.concatenate([task.hist, block], axis=1)
+            _keep_history(task, block, first, keep)
             task.gen_pos = end
-            drop = task.hist.shape[1] - keep
-            if drop > 0:
-                task.hist = task.hist[:, drop:]
-                task.hist_start += drop
         i = start - task.hist_start
         if i < 0:
             raise DaqmxError(SAMPLES_NO_LONGER_AVAILABLE, f"Sample {start} was overwritten.",
@@ -622,3 +618,27 @@ class SimulatedUsb6001:
             np.round(v / lsb, out=row)
             row *= lsb
         return out
+
+
+def _keep_history(task: SimTask, block: FloatArray, first: int, keep: int) -> None:
+    """Append ``block`` (samples ``first ..``) to ``task.hist`` and keep its last ``keep``
+    samples: what ``concatenate`` then a slice give, written into storage with room for
+    about ``keep`` more, so a read copies its own samples, not the whole buffer."""
+    n = block.shape[1]
+    if first > task.gen_pos:  # nothing kept joins this block
+        task.hist, task.hist_start, task.hist_off = task.hist[:, :0], first, 0
+    size = task.hist.shape[1]
+    buf = task.hist_buf
+    if task.hist_off + size + n > buf.shape[1]:
+        retain = min(size, max(0, keep - n))
+        fresh = np.empty((block.shape[0], max(2 * keep, retain + n)))
+        fresh[:, :retain] = task.hist[:, size - retain:]
+        task.hist_start += size - retain
+        buf, task.hist_buf, task.hist_off, size = fresh, fresh, 0, retain
+    end = task.hist_off + size
+    buf[:, end:end + n] = block
+    size += n
+    drop = max(0, size - keep)
+    task.hist_off += drop
+    task.hist_start += drop
+    task.hist = buf[:, task.hist_off:task.hist_off + size - drop]
