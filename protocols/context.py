@@ -28,6 +28,7 @@ class StepContext(Generic[RigT]):
         control: RunControl,
         index: int,
         outcomes: Mapping[int, object] | None = None,
+        watched: bool = True,
     ):
         self.rig: RigT = rig
         self.clock: Clock = rig.clock
@@ -37,6 +38,9 @@ class StepContext(Generic[RigT]):
         self.outcomes = outcomes or {}
         self.interlocks: tuple[Interlock, ...] = ()
         self.samples_published = 0
+        #: someone watches the run (CLI, GUI); False in a rehearsal: work done only for the
+        #: display (live refits of a fixed hold) is skipped, nothing that steers the run
+        self.watched = watched
 
     def earlier(self, kind: type[T]) -> T | None:
         """The latest earlier step's result of type ``kind`` (e.g. a contact search's), or

@@ -233,7 +233,7 @@ def rehearse(
     bus = EventBus() if bus is None else bus
     counter = Counter(protocol)
     bus.subscribe(counter)
-    runner = Runner(rig, protocol, bus, control)
+    runner = Runner(rig, protocol, bus, control, watched=False)
     try:
         state = runner.run()
         reason = runner.reason

@@ -45,6 +45,7 @@ class Runner:
         bus: EventBus | None = None,
         control: RunControl | None = None,
         completed: Mapping[int, Mapping[str, Any]] | None = None,
+        watched: bool = True,
     ):
         if protocol.rig != rig.kind or not all(isinstance(rig, s.definition.rig)
                                                for s in protocol.steps):
@@ -52,6 +53,7 @@ class Runner:
                               f"not on this {rig.kind} rig")
         self.rig = rig
         self.protocol = protocol
+        self.watched = watched  # see StepContext.watched
         self.bus = bus or EventBus()
         self.control = control or RunControl()
         #: what each finished step recorded (run.json's tables), by step index
@@ -107,7 +109,8 @@ class Runner:
         for index, step in enumerate(self.protocol.steps):
             if index in self.results:
                 continue
-            ctx = StepContext[Any](self.rig, self.bus, self.control, index, self.outcomes)
+            ctx = StepContext[Any](self.rig, self.bus, self.control, index, self.outcomes,
+                                   self.watched)
             try:
                 ctx.checkpoint()
                 self.bus.publish(StepStarted(clock.now(), index, step.name, step.kind,

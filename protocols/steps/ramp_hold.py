@@ -221,7 +221,8 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         measured, overlap = measured_overlap(
             cols["position_m"], cols["force_N"], cols["delta_m"],
             find_hold(delta=cols["delta_m"]).start, float(getattr(chain, "compliance", 0.0)))
-        for terms in range(1, int(p.terms) + 1):
+        # a rehearsal (nobody watches) skips the fits: they inform, they do not steer the run
+        for terms in range(1, int(p.terms) + 1) if ctx.watched else ():
             try:
                 fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
                                terms=terms, delta=cols["delta_m"])
@@ -250,6 +251,8 @@ class _LiveHold:
         t = data["t_s"]
         if not t.size:
             return False
+        if self.rule is None and not self.ctx.watched:  # a rehearsal of a fixed hold: the
+            return False  # live fit only informs the display, and nobody looks
         if self.t0 is None:
             self.t0 = float(t[0])
         delta = data["delta_m"]

@@ -22,7 +22,8 @@ def protocol(**hold: object) -> object:
     return parse_protocol({"protocol": {"name": "t", "rig": "compression"}, "step": [step]})
 
 
-def run_hold(material: object, **hold: object) -> tuple[dict, list[FitUpdate]]:
+def run_hold(material: object, watched: bool = True, **hold: object
+             ) -> tuple[dict, list[FitUpdate]]:
     rig, _, _ = compression_rig(material=material, noise=NOISE)  # type: ignore[arg-type]
     bus = EventBus()
     updates: list[FitUpdate] = []
@@ -32,7 +33,7 @@ def run_hold(material: object, **hold: object) -> tuple[dict, list[FitUpdate]]:
             updates.append(e)
 
     bus.subscribe(keep)
-    runner = Runner(rig, protocol(**hold), bus)
+    runner = Runner(rig, protocol(**hold), bus, watched=watched)
     assert runner.run() is RunState.COMPLETED, runner.reason
     return runner.results[0], updates
 
@@ -60,6 +61,20 @@ def test_plate_adaptive_hold_ends_before_3000_s_within_2_percent() -> None:
     assert final.ending and final.met and updates[-2].met
     assert final.state.tau_relative <= 0.02
     assert final.state.tau == pytest.approx(1413.0, rel=0.02)
+
+
+def test_an_unwatched_run_skips_what_only_informs_but_keeps_what_steers() -> None:
+    """A rehearsal (``watched=False``): a fixed hold makes no live refits and no fits (they
+    inform, they do not change the run's course), an adaptive hold still refits and ends
+    where a watched run ends (docs/decisions/0090, addendum 4)."""
+    fixed, none = run_hold(paper.PLATES, watched=False, hold="1000 s", terms=1)
+    assert none == [] and fixed["fits"] == [] and fixed["hold_end"] == "planned"
+    assert fixed["held_s"] == pytest.approx(1000.0, abs=0.1)
+    seen, _ = run_hold(paper.PLATES, hold="3000 s", terms=1, until=0.02)
+    rehearsed, updates = run_hold(paper.PLATES, watched=False, hold="3000 s", terms=1,
+                                  until=0.02)
+    assert updates and rehearsed["hold_end"] == "target"
+    assert rehearsed["held_s"] == seen["held_s"]
 
 
 def test_shell_adaptive_hold_waits_for_the_second_term_when_asked() -> None:
