@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -225,10 +226,18 @@ def fit_relaxation(
     n = t.size
     flat_rss = max(float(np.sum((g - np.mean(g)) ** 2)), 1e-300)
     simpler_bic = n * math.log(flat_rss / n) + math.log(n)  # constant G: one parameter
+    return resolve_terms((_fit_terms(t, g, k, t0) for k in range(1, terms + 1)), simpler_bic)
+
+
+def resolve_terms(fits: Iterable[RelaxationFit], simpler_bic: float) -> RelaxationFit:
+    """The last of ``fits`` (1, 2, ... terms, each made when asked for) with the simpler fits
+    chained as ``fewer`` and how many terms the data resolve: term k is resolved when terms
+    1..k-1 are and :func:`resolution` finds no reason against it against the fit before it
+    (the first against ``simpler_bic``, a constant G)."""
     fit: RelaxationFit | None = None
     resolved, why = 0, ""
-    for k in range(1, terms + 1):
-        fit = replace(_fit_terms(t, g, k, t0), fewer=fit)
+    for k, made in enumerate(fits, start=1):
+        fit = replace(made, fewer=fit)
         reason = resolution(fit, simpler_bic)
         if not why:
             if reason:
@@ -237,7 +246,8 @@ def fit_relaxation(
                 resolved = k
         simpler_bic = fit.bic
         fit = replace(fit, terms_resolved=resolved, not_resolved=why)
-    assert fit is not None
+    if fit is None:
+        raise ValueError("no fit to resolve")
     return fit
 
 

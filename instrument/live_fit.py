@@ -16,7 +16,7 @@ with the current noise estimate (docs/decisions/0180).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -28,7 +28,7 @@ from instrument.analysis import (
     MIN_HOLD_SAMPLES,
     RelaxationFit,
     _grid_start,
-    resolution,
+    resolve_terms,
     standard_errors,
 )
 from instrument.binning import bin_means
@@ -53,7 +53,6 @@ MAX_EVALUATIONS = 60
 DRAW_POINTS = 300
 #: Points the planned-end forecast samples the model at.
 _FORECAST_POINTS = 400
-_ORDINAL = {1: "first", 2: "second"}
 
 
 @dataclass(frozen=True)
@@ -272,31 +271,17 @@ def fit_binned(tb: FloatArray, gb: FloatArray, n: FloatArray, within: float, ter
     flat_rss = max(within + float(np.sum(n * (gb - gmean) ** 2)), 1e-300)
     simpler_bic = total * math.log(flat_rss / total) + math.log(total)
     tg, gg = bin_means(tb, gb, _GRID_BINS)
-    fit: RelaxationFit | None = None
-    resolved, why = 0, ""
-    for k in range(1, terms + 1):
+
+    def one(k: int) -> RelaxationFit:
         starts = [warm[k]] if k in warm else []
         if grid or not starts:
             starts.append(np.array(_grid_start(tg, gg, k)))
-        best: tuple[RelaxationFit, float] | None = None
-        for start in starts:
-            candidate = _fit_exact(tb, gb, n, within, k, start)
-            if best is None or candidate[1] < best[1]:
-                best = candidate
-        assert best is not None
-        one = best[0]
-        warm[k] = np.array([one.g_e, *[x for r in one.relax for x in (r.g, r.tau)]])
-        fit = replace(one, fewer=fit)
-        reason = resolution(fit, simpler_bic)
-        if not why:
-            if reason:
-                why = f"{_ORDINAL[k]} term not resolved: {reason}"
-            else:
-                resolved = k
-        simpler_bic = fit.bic
-        fit = replace(fit, terms_resolved=resolved, not_resolved=why)
-    assert fit is not None
-    return fit
+        best = min((_fit_exact(tb, gb, n, within, k, start) for start in starts),
+                   key=lambda candidate: candidate[1])[0]
+        warm[k] = _params(best)
+        return best
+
+    return resolve_terms((one(k) for k in range(1, terms + 1)), simpler_bic)
 
 
 def _params(fit: RelaxationFit) -> FloatArray:
