@@ -183,6 +183,8 @@ def test_demo_runs_both_paper_protocols(tmp_path, capsys):
         assert Path(report).exists() and Path(report).suffix == ".html"
     out = capsys.readouterr().out
     assert str(tmp_path.resolve()) in out
+    # the plates' second term is not resolved: its values are not printed as a result
+    assert "plates 2-term fit: second term not resolved" in out and "fit stands" in out
 
 
 def test_ctrl_c_pauses_then_aborts(tmp_path, short):
