@@ -188,9 +188,14 @@ def test_demo_runs_both_paper_protocols(tmp_path, capsys):
 
 
 def test_ctrl_c_pauses_then_aborts(tmp_path, short):
+    # a step after the hold: wherever the Ctrl-C lands (a hold runs on: it cannot pause
+    # without changing the physics), the run pauses at a checkpoint before the last step
+    protocol = short("300 s")
+    protocol.write_text(protocol.read_text() + '\n[[step]]\nkind = "compression_contact_search"'
+                        '\nconfirm = 0\n')
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gelrig.cli", "run", str(short("300 s")), "--out", str(out),
+        [sys.executable, "-m", "gelrig.cli", "run", str(protocol), "--out", str(out),
          "--clock", "paced:20"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         stdin=subprocess.DEVNULL)
     run = RunDirectory(out)
