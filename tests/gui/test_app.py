@@ -67,6 +67,14 @@ def open_window(qtbot, tmp_path):
         window.close()
 
 
+def home(qtbot, window):
+    """Home the stage from the manual panel and wait until it is homed and at rest."""
+    window.manual.buttons["home"].click()
+    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
+    qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest"
+                    and not window.session.moving_by_hand, timeout=15_000)
+
+
 def stage_sim(window):
     address = window.session.rig.identities["stage"]["address"]
     return lookup(address.split("://", 1)[1])
@@ -221,8 +229,7 @@ def test_manual_control_homes_moves_and_stops(qtbot, open_window):
     window = open_window(10.0)
     sim, clock = stage_sim(window), window.session.clock
     manual = window.manual
-    manual.buttons["home"].click()
-    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
+    home(qtbot, window)
     manual.entries["speed"].setValue(2.0)
     manual.entries["target"].setValue(0.2)
     manual.buttons["move_to"].click()

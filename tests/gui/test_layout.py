@@ -22,7 +22,7 @@ from gui.fmt import quantity
 from gui.plots import ShearPlots
 from protocols.events import RunState
 from tests.gui import test_app
-from tests.gui.test_app import short_compression, stage_sim, wait_finished
+from tests.gui.test_app import home, short_compression, stage_sim, wait_finished
 
 open_window = test_app.open_window  # the fixture: a window on a built-in simulated rig
 
@@ -79,8 +79,7 @@ def test_escape_stops_a_manual_move_from_any_widget(qtbot, open_window):
     sim, clock = stage_sim(window), window.session.clock
     window.left_tabs.setCurrentIndex(1)
     manual = window.manual
-    manual.buttons["home"].click()
-    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
+    home(qtbot, window)
     manual.entries["speed"].setValue(0.5)
     manual.entries["target"].setValue(4.0)
     manual.buttons["move_to"].click()
@@ -204,8 +203,7 @@ def test_a_finished_run_s_buffers_are_released_when_the_next_run_starts(qtbot, o
 def test_the_manual_tab_plots_force_and_position_live(qtbot, open_window):
     window = open_window(10.0)
     window.left_tabs.setCurrentIndex(1)
-    window.manual.buttons["home"].click()  # a move before homing asks to home first
-    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
+    home(qtbot, window)  # a move before homing asks to home first
     window.manual.entries["target"].setValue(1.0)
     window.manual.buttons["move_to"].click()
     assert window.plot_tabs.currentWidget() is window.idle_plots

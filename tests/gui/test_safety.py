@@ -17,6 +17,7 @@ from protocols.events import RunState
 from protocols.rigfile import default_rig
 from tests.doubles import compression_rig
 from tests.gui.test_app import (
+    home,
     open_window,
     samples_in,
     short_compression,
@@ -34,13 +35,6 @@ def answer(monkeypatch, reply, asked=None, module=QMessageBox):
             asked.append(args[2])
         return reply
     monkeypatch.setattr(module, "question", question)
-
-
-def home(qtbot, window):
-    window.manual.buttons["home"].click()
-    qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
-    qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest"
-                    and not window.session.moving_by_hand, timeout=15_000)
 
 
 def move_to(window, mm, speed=0.5):
