@@ -99,6 +99,10 @@ def _planned_steps(meta: Mapping[str, Any], problems: list[str]) -> list[tuple[s
     if not isinstance(table, dict):
         problems.append("run.json holds no protocol: analysing the recorded steps as found")
         return []
+    head = table.get("protocol")
+    if isinstance(head, dict) and "script" in head:  # a script's steps are what it recorded
+        return [(str(s.get("kind", "?")), str(s.get("name", "?")), dict(s.get("params") or {}))
+                for s in sorted(meta.get("steps", []), key=lambda s: int(s["index"]))]
     try:
         spec = parse_protocol(table, "run.json protocol")
     except ConfigError as exc:

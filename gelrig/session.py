@@ -30,11 +30,12 @@ from instrument.errors import ConfigError, GelrigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, RunState
+from protocols.procedure import Procedure
+from protocols.rig import Rig
 from protocols.rigfile import RigSpec
 from protocols.runner import Runner
 from protocols.safestop import AxisState, SafeState, bounded
 from protocols.session import RecordedRun
-from protocols.spec import ProtocolSpec
 
 if TYPE_CHECKING:
     from gelrig.console import ConsoleView
@@ -124,10 +125,10 @@ def _resume_on_enter(control: RunControl) -> None:
             control.resume()
 
 
-def metadata(protocol: ProtocolSpec, rig: RigSpec, clock_spec: str) -> dict[str, Any]:
+def metadata(protocol: Procedure, rig: RigSpec, clock_spec: str) -> dict[str, Any]:
     return {
         "software": {"name": "gelrig", "version": __version__, "python": sys.version.split()[0]},
-        "protocol": protocol.table, "protocol_file": protocol.source,
+        "protocol": dict(protocol.table), "protocol_file": protocol.source,
         "rig": rig.table, "rig_file": rig.source, "clock": clock_spec,
         "started_wall": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
@@ -144,7 +145,7 @@ LOG_NAME = "gelrig.log"
 
 
 def execute(
-    protocol: ProtocolSpec,
+    protocol: Procedure,
     rig_spec: RigSpec,
     clock: Clock,
     run: RunDirectory,
@@ -153,8 +154,11 @@ def execute(
     bus: EventBus | None = None,
     control: RunControl | None = None,
     exit: Callable[[int], object] = os._exit,
+    rig: Rig | None = None,
 ) -> tuple[RunState, Runner]:
     """Build the rig, run the protocol into ``run``, close the rig; returns the final state.
+    With ``rig`` (already built from ``rig_spec``: a session of the scripting API) that rig
+    is used and left open for its owner.
 
     The log goes to RUN_DIR/gelrig.log. The steps run on a worker thread; if an abort (a
     second Ctrl-C, the watchdog) is not honoured within :data:`GRACE` s because that thread
@@ -164,15 +168,17 @@ def execute(
     import gelrig.console  # noqa: F401 - imported before the run shows as "running"
 
     with run_logging(run.path / LOG_NAME) as log_path:
-        rig = build_rig(rig_spec, clock)
+        owned = rig is None
+        used = build_rig(rig_spec, clock) if rig is None else rig
         try:
-            recorded = RecordedRun(rig, protocol, bus, control, completed).record(run)
+            recorded = RecordedRun(used, protocol, bus, control, completed).record(run)
             return _execute(recorded, run, show, log_path, exit), recorded.runner
         finally:
-            try:
-                bounded(rig.close, CLOSE_TIMEOUT, "closing the rig")
-            except Exception as exc:
-                log.error("closing the rig: %s", exc, exc_info=True)
+            if owned:
+                try:
+                    bounded(used.close, CLOSE_TIMEOUT, "closing the rig")
+                except Exception as exc:
+                    log.error("closing the rig: %s", exc, exc_info=True)
 
 
 def _execute(recorded: RecordedRun, run: RunDirectory, show: bool, log_path: Path,
@@ -263,6 +269,19 @@ def _emergency_end(recorded: RecordedRun, run: RunDirectory, log_path: Path,
     exit(1 if failed else 3)
 
 
-def default_run_dir(protocol: ProtocolSpec) -> Path:
+def keep_script(protocol: Procedure, run: RunDirectory) -> None:
+    """A script run keeps a copy of its script beside its data (what made it; what a resume
+    falls back on when the file is gone)."""
+    import shutil
+
+    from protocols.script import COPY_DIR, Script
+
+    if isinstance(protocol, Script) and protocol.path and Path(protocol.path).is_file():
+        folder = run.path / COPY_DIR
+        folder.mkdir(exist_ok=True)
+        shutil.copyfile(protocol.path, folder / Path(protocol.path).name)
+
+
+def default_run_dir(protocol: Procedure) -> Path:
     slug = "".join(c if c.isalnum() else "-" for c in protocol.rig)
     return Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{slug}"

@@ -264,6 +264,8 @@ class StepRecord:
     started: float | None = None
     finished: float | None = None
     results: dict[str, Any] | None = None
+    #: the step's parameters (TOML keys, SI values): a script's steps are known only here
+    params: dict[str, Any] | None = None
 
 
 def check_out_dir(path: Path, option: str = "--out") -> None:
@@ -414,7 +416,7 @@ class RunDirectory:
         meta = self.read_metadata()
         steps = [s for s in meta["steps"] if s["index"] != index]
         steps.append(StepRecord(index, name, kind, "running", str(path.relative_to(self.path)),
-                                started=t_start).__dict__)
+                                started=t_start, params=dict(params)).__dict__)
         meta["steps"] = sorted(steps, key=lambda s: s["index"])
         self.write_metadata(meta)
         return writer

@@ -32,9 +32,9 @@ from protocols.events import (
     StepFinished,
     StepStarted,
 )
+from protocols.procedure import Procedure
 from protocols.rig import Rig
 from protocols.runner import Runner
-from protocols.spec import ProtocolSpec
 
 #: Columns whose path length is a step's travel: the plate position, the arm's arc.
 TRAVEL_COLUMNS = ("position_m", "theta_m")
@@ -159,7 +159,7 @@ def human_bytes(n: float) -> str:
 class Counter:
     """A bus subscriber that counts what a recorder would write, and where limits were hit."""
 
-    def __init__(self, protocol: ProtocolSpec):
+    def __init__(self, protocol: Procedure):
         self.steps = [StepFigures(i, s.name, s.kind) for i, s in enumerate(protocol.steps)]
         self.hits: list[LimitHit] = []
         self.start = math.nan
@@ -171,6 +171,8 @@ class Counter:
         if isinstance(event, Samples):
             self._samples(event.data)
         elif isinstance(event, StepStarted):
+            while len(self.steps) <= event.index:  # a script's steps show up as it runs
+                self.steps.append(StepFigures(len(self.steps), event.name, event.kind))
             figures = self.steps[event.index]
             figures.status, figures.started = "running", event.t
             figures.columns = tuple(event.columns)
@@ -225,7 +227,7 @@ class Counter:
 
 
 def rehearse(
-    rig: Rig, protocol: ProtocolSpec, bus: EventBus | None = None,
+    rig: Rig, protocol: Procedure, bus: EventBus | None = None,
     control: RunControl | None = None,
 ) -> RehearsalReport:
     """Run ``protocol`` on ``rig`` (a twin, in virtual time) counting instead of recording;

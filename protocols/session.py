@@ -16,10 +16,10 @@ from instrument.errors import GelrigError
 from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import EventBus, RunState
+from protocols.procedure import Procedure
 from protocols.recorder import Recorder
 from protocols.rig import Rig
 from protocols.runner import Runner
-from protocols.spec import ProtocolSpec
 
 
 class RecordedRun:
@@ -34,7 +34,7 @@ class RecordedRun:
     def __init__(
         self,
         rig: Rig,
-        protocol: ProtocolSpec,
+        protocol: Procedure,
         bus: EventBus | None = None,
         control: RunControl | None = None,
         completed: Mapping[int, Mapping[str, Any]] | None = None,
@@ -52,6 +52,9 @@ class RecordedRun:
             raise GelrigError(f"this run already records into {self.directory.path}")
         self.bus.subscribe(Recorder(run), critical=True)
         run.update(instruments=self.rig.identities, status="running")
+        # what a resumed script must ask for again at each completed step
+        self.runner.recorded = {i: (str(s.get("name")), str(s.get("kind")))
+                                for i, s in run.completed_steps().items()}
         self.directory = run
         return self
 

@@ -16,14 +16,18 @@ Loading validates everything before anything moves; errors name the file, the fi
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from instrument.errors import ConfigError
 from instrument.fields import Where, read_toml
-from protocols.steps import KINDS, StepDefinition
+from protocols.steps import KINDS, StepDefinition, load_step_modules
 from protocols.steps.base import StepParams
+
+if TYPE_CHECKING:
+    from protocols.procedure import StepSink
 
 RIGS = ("compression", "shear")
 #: Longest step name: names become file names (``steps/NN_name.h5``).
@@ -53,6 +57,11 @@ class ProtocolSpec:
     table: dict[str, Any]
     source: str = "<protocol>"
 
+    def drive(self, sink: StepSink) -> None:
+        """Send each step to ``sink`` in the file's order (a :class:`Procedure`)."""
+        for step in self.steps:
+            sink.step(step)
+
 
 def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> ProtocolSpec:
     """Validate a protocol given as a TOML table."""
@@ -69,36 +78,58 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
     rig = head.get("rig")
     if rig not in RIGS:
         raise ConfigError("[protocol] rig", rig, f"allowed: {', '.join(RIGS)}", source)
-    extra = set(head) - {"name", "rig", "description"}
+    extra = set(head) - {"name", "rig", "description", "step_kinds"}
     if extra:
         key = sorted(extra)[0]
         raise ConfigError(f"[protocol] {key}", head[key],
-                          "unknown field; allowed: name, rig, description", source)
+                          "unknown field; allowed: name, rig, description, step_kinds", source)
+    modules = head.get("step_kinds", [])
+    if not isinstance(modules, list):
+        raise ConfigError("[protocol] step_kinds", modules, "a list of .py files next to the "
+                          "protocol file, or module names", source)
+    load_step_modules(modules, Path(source).parent, source)
     raw_steps = table.get("step")
     if not isinstance(raw_steps, list) or not raw_steps:
         raise ConfigError("[[step]]", "missing", "at least one [[step]] table", source)
     steps = []
     for i, raw in enumerate(raw_steps):
         where = Where(f"step[{i}]", source)
+        if not isinstance(raw, dict):
+            raise where.error("", raw, "a [[step]] table")
         kind = raw.get("kind")
-        definition = KINDS.get(kind) if isinstance(kind, str) else None
-        if definition is None:
-            allowed = ", ".join(k for k, d in KINDS.items() if d.rig_kind == rig)
-            raise where.error("kind", kind, f"allowed for a {rig} rig: {allowed}")
-        if definition.rig_kind != rig:
-            raise where.error("kind", kind,
-                              f"runs on the {definition.rig_kind} rig, not the {rig} rig")
-        step_name = raw.get("name", definition.description or kind)
-        if not isinstance(step_name, str) or not step_name.strip():
-            raise where.error("name", step_name, "a non-empty string")
-        if (len(step_name) > MAX_STEP_NAME or not step_name.isprintable()
-                or any(c in step_name for c in "/\\")):
-            shown = step_name if len(step_name) <= 40 else f"{step_name[:37]}..."
-            raise where.error("name", shown.encode("unicode_escape").decode(),
-                              f"printable, at most {MAX_STEP_NAME} characters, no / or \\ "
-                              "(it names the step's data file)")
-        steps.append(Step(definition, step_name, definition.parse(raw, where)))
+        steps.append(make_step(kind, raw.get("name"), raw, rig, where))
     return ProtocolSpec(name, rig, tuple(steps), table, source)
+
+
+def make_step(kind: object, name: object, params: Mapping[str, Any], rig: str,
+              where: Where) -> Step:
+    """One validated step: ``kind`` (a registered kind's name, or a step definition),
+    ``name`` (default: the kind's description), ``params`` as a protocol file's table holds
+    them (unit strings or SI numbers; ``kind`` and ``name`` keys are ignored)."""
+    if isinstance(kind, type) and issubclass(kind, StepDefinition):
+        definition: StepDefinition[Any, Any, Any] | None = KINDS.get(kind.kind)
+        if definition is None or type(definition) is not kind:
+            definition = kind()
+    elif isinstance(kind, StepDefinition):
+        definition = kind
+    else:
+        definition = KINDS.get(kind) if isinstance(kind, str) else None
+    if definition is None:
+        allowed = ", ".join(k for k, d in KINDS.items() if d.rig_kind == rig)
+        raise where.error("kind", kind, f"allowed for a {rig} rig: {allowed}")
+    if definition.rig_kind != rig:
+        raise where.error("kind", definition.kind,
+                          f"runs on the {definition.rig_kind} rig, not the {rig} rig")
+    step_name = definition.description or definition.kind if name is None else name
+    if not isinstance(step_name, str) or not step_name.strip():
+        raise where.error("name", step_name, "a non-empty string")
+    if (len(step_name) > MAX_STEP_NAME or not step_name.isprintable()
+            or any(c in step_name for c in "/\\")):
+        shown = step_name if len(step_name) <= 40 else f"{step_name[:37]}..."
+        raise where.error("name", shown.encode("unicode_escape").decode(),
+                          f"printable, at most {MAX_STEP_NAME} characters, no / or \\ "
+                          "(it names the step's data file)")
+    return Step(definition, step_name, definition.parse(params, where))
 
 
 def load_protocol(path: str | Path) -> ProtocolSpec:

@@ -34,6 +34,9 @@ class Watchdog:
         self.expired = False
         self._last = wall()
         self._paused = False
+        #: False between the steps of a run (a script computing what to do next is not a
+        #: frozen instrument); the clock restarts when it is set again
+        self._active = True
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -41,6 +44,15 @@ class Watchdog:
         self._last = self.wall()
         if isinstance(event, StateChanged):
             self._paused = event.new is RunState.PAUSED
+
+    @property
+    def active(self) -> bool:
+        return self._active
+
+    @active.setter
+    def active(self, value: bool) -> None:
+        self._last = self.wall()
+        self._active = value
 
     def start(self) -> Watchdog:
         """Arm it (no-op when ``timeout`` is 0); returns self."""
@@ -56,7 +68,7 @@ class Watchdog:
 
     def check(self) -> bool:
         """Fault the run if it has been silent too long; True if it did (now or before)."""
-        if self.expired or self._paused or self.control.abort_requested:
+        if self.expired or self._paused or not self._active or self.control.abort_requested:
             return self.expired
         silent = self.wall() - self._last
         if silent > self.timeout:

@@ -14,8 +14,8 @@ from instrument.errors import ConfigError
 if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when a command runs
     from instrument.store import RunDirectory
     from protocols.events import RunState
+    from protocols.procedure import Procedure
     from protocols.rigfile import RigSpec
-    from protocols.spec import ProtocolSpec
 
 #: Exit code by the final RunState's value.
 EXIT = {"completed": 0, "failed": 1, "aborted": 3}
@@ -53,20 +53,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _protocol_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("protocol", metavar="PROTOCOL",
-                        help="protocol file, or paper:compression / paper:shear")
+                        help="protocol file (.toml), script (.py; docs/scripting.md), or "
+                             "paper:compression / paper:shear")
     parser.add_argument("--rig", default=None, metavar="RIG.toml",
                         help="rig file (default: the built-in simulated rig for the protocol)")
 
 
-def resolve_protocol(name: str) -> ProtocolSpec:
-    from protocols.spec import load_protocol, paper_protocol
+def resolve_protocol(name: str) -> Procedure:
+    from protocols.script import load_procedure
 
-    if name.startswith("paper:"):
-        return load_protocol(paper_protocol(name.split(":", 1)[1]))
-    return load_protocol(name)
+    return load_procedure(name)
 
 
-def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
+def resolve_rig(path: str | None, protocol: Procedure) -> RigSpec:
     from protocols.rigfile import default_rig, load_rig
 
     rig = load_rig(path if path else default_rig(protocol.rig))
@@ -76,12 +75,17 @@ def resolve_rig(path: str | None, protocol: ProtocolSpec) -> RigSpec:
     return rig
 
 
-def print_plan(protocol: ProtocolSpec, rig: RigSpec) -> list[str]:
+def print_plan(protocol: Procedure, rig: RigSpec) -> list[str]:
     """Print the plan; returns the messages of failed limit checks."""
     from protocols.plan import dry_run
+    from protocols.spec import ProtocolSpec
 
     print(f"Protocol: {protocol.name}  ({protocol.source})")
     print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
+    if not isinstance(protocol, ProtocolSpec):
+        print("Steps:    decided by the script as it runs; `gelrig plan` rehearses it on the "
+              "rig's twin")
+        return []
     summary = dry_run(protocol, rig.limits)
     for line in summary.lines[1:]:  # the first repeats the protocol's name
         print(f"\n{line}" if line[:1].isdigit() or line.startswith("Total") else line)
@@ -155,7 +159,7 @@ def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from gelrig.session import LOG_NAME, default_run_dir, execute, metadata
+    from gelrig.session import LOG_NAME, default_run_dir, execute, keep_script, metadata
     from instrument.store import RunDirectory, check_out_dir
 
     protocol = resolve_protocol(args.protocol)
@@ -167,6 +171,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
     clock, spec = _clock(args.clock, rig)
     run = RunDirectory.create(out, metadata(protocol, rig, spec))
+    keep_script(protocol, run)
     with run.lock():
         print(f"\nrecording to {out.resolve()} ({spec} clock)")
         try:
@@ -195,7 +200,7 @@ def cmd_resume(args: argparse.Namespace) -> int:
     from gelrig.session import execute
     from instrument.store import RunDirectory
     from protocols.rigfile import parse_rig
-    from protocols.spec import parse_protocol
+    from protocols.script import procedure_from_table
 
     source = RunDirectory(args.run_dir)
     meta = source.read_metadata()
@@ -206,7 +211,10 @@ def cmd_resume(args: argparse.Namespace) -> int:
         if not isinstance(meta.get(key), dict):
             raise ConfigError(key, meta.get(key, "missing"), "run.json must hold the "
                               f"{key} table to resume", str(source.meta_path))
-    protocol = parse_protocol(meta["protocol"], meta.get("protocol_file", "<run.json>"))
+    protocol, notes = procedure_from_table(meta["protocol"],
+                                           meta.get("protocol_file", "<run.json>"), source.path)
+    for note in notes:
+        print(f"note: {note}")
     rig = parse_rig(meta["rig"], meta.get("rig_file", "<run.json>"))
     clock, spec = _clock(args.clock or meta.get("clock"), rig)
     with contextlib.ExitStack() as held:

@@ -63,7 +63,7 @@ def test_a_recorder_that_cannot_write_stops_the_run(make_rig, tmp_path, monkeypa
 
     monkeypatch.setattr(run, "open_step", disk_full)
     recorded = RecordedRun(rig, short_compression()).record(run)
-    with pytest.raises(OSError, match="disk full"):
-        recorded.run()
-    assert recorded.state is RunState.FAILED
+    # an unexpected error ends the run like an instrument's: stopped, recorded, not raised
+    assert recorded.run() is RunState.FAILED
+    assert recorded.reason == "OSError: disk full"
     assert run.read_metadata()["status"] == "failed"

@@ -1,0 +1,335 @@
+"""The scripting API's entry points: open a rig, run protocols and scripts on it, rehearse.
+
+A composition root like the CLI (it builds rigs through the factory); re-exported by the
+``gelrig`` package, which lists the whole public surface (``gelrig.__all__``)::
+
+    import gelrig
+
+    with gelrig.open_rig("compression") as rig:      # the built-in simulated rig, virtual time
+        result = rig.run("paper:compression", out="runs/paper")
+        print(result.state, result.steps[-1]["results"]["fits"][0]["relax"])
+
+Every run goes through the same wiring as ``gelrig run``: the runner (preflight, caps,
+interlocks on every sample, pause, abort, watchdog), the recorder (HDF5 streamed and flushed,
+run.json), the safe stop on any way out. Leaving the ``with`` block by an error or Ctrl-C
+stops all motion and puts the sample in its safe state before the instruments are closed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from instrument.clock import Clock
+from instrument.errors import ConfigError, InterlockTripped
+from instrument.store import RunDirectory, check_out_dir
+from protocols.control import RunControl
+from protocols.events import Event, EventBus
+from protocols.guard import Guarded, guarded
+from protocols.procedure import Procedure
+from protocols.rehearsal import RehearsalReport
+from protocols.rig import CompressionRig, Rig, ShearRig
+from protocols.rigfile import RigSpec, default_rig, load_rig
+from protocols.safestop import SafeState
+from protocols.script import load_procedure
+
+log = logging.getLogger(__name__)
+
+#: Wall seconds the safe stop on leaving a session by an error may take.
+SAFE_STOP_BUDGET = 15.0
+
+
+@dataclass
+class RunResult:
+    """How a run ended and where its data is: ``state`` ("completed", "aborted", "failed"),
+    why, the run directory, and run.json's step records (name, kind, status, samples,
+    ``results``, ``params``)."""
+
+    state: str
+    reason: str
+    path: Path
+    steps: list[dict[str, Any]] = field(default_factory=list)
+    safe_state: dict[str, Any] | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.state == "completed"
+
+    def results(self, name: str) -> dict[str, Any]:
+        """The results of the (last) step called ``name``."""
+        for step in reversed(self.steps):
+            if step.get("name") == name:
+                return dict(step.get("results") or {})
+        raise KeyError(f"no step named {name!r} in {self.path}; steps: "
+                       f"{', '.join(str(s.get('name')) for s in self.steps)}")
+
+
+def _rig_spec(rig: str | os.PathLike[str] | RigSpec) -> RigSpec:
+    if not isinstance(rig, str | os.PathLike):
+        return rig
+    name = os.fspath(rig)
+    if name in ("compression", "shear"):
+        return load_rig(default_rig(name))
+    return load_rig(name)
+
+
+def _clock(clock: str | Clock | None, spec: RigSpec) -> tuple[Clock, str]:
+    from gelrig.session import check_clock
+    from instrument.clock import clock_from_spec
+
+    if clock is None:
+        clock = "virtual" if spec.simulated else "real"
+    if isinstance(clock, str):
+        made, text = clock_from_spec(clock), clock
+    else:
+        made, text = clock, type(clock).__name__.removesuffix("Clock").lower()
+    check_clock(spec, made, text)
+    return made, text
+
+
+class RigSession:
+    """An open rig: its instruments (through their contracts, under the rig file's caps),
+    its clock, and runs recorded on it. Use as a context manager (:func:`open_rig`)."""
+
+    def __init__(self, spec: RigSpec, clock: Clock, clock_spec: str):
+        from gelrig.factory import build_rig
+
+        self.spec = spec
+        self.clock = clock
+        self.clock_spec = clock_spec
+        self.rig: Rig = build_rig(spec, clock)
+        self.control = RunControl()
+        self._closed = False
+
+    @property
+    def kind(self) -> str:
+        """``"compression"`` or ``"shear"``."""
+        return self.rig.kind
+
+    # -- runs ------------------------------------------------------------------------------
+    def run(self, protocol: Procedure | str | os.PathLike[str], out: str | os.PathLike[str]
+            | None = None, *, show: bool = False,
+            subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
+        """Run a protocol (a :class:`~protocols.script.Script`, a protocol file, a script
+        file, ``"paper:compression"``) into a new run directory ``out`` (default
+        ``runs/<time>-<rig>``) and return how it ended. ``show`` prints the CLI's progress;
+        ``subscribers`` get every event of the run (the same stream the CLI and GUI use).
+        A run that ends short (abort, trip, fault, a script's error) has stopped all motion
+        first; its state says so, nothing is raised (Ctrl-C is re-raised after the stop)."""
+        from gelrig.session import default_run_dir, keep_script, metadata
+
+        procedure = _procedure(protocol)
+        self._check_kind(procedure)
+        path = Path(out) if out is not None else default_run_dir(procedure)
+        check_out_dir(path)
+        run = RunDirectory.create(path, metadata(procedure, self.spec, self.clock_spec))
+        keep_script(procedure, run)
+        with run.lock():
+            return self._execute(procedure, run, None, show, subscribers)
+
+    def resume(self, run_dir: str | os.PathLike[str], *, show: bool = False,
+               subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
+        """Continue a run that ended short from its last completed step, on this rig (the
+        run's protocol, or its script run again with completed steps replayed)."""
+        from protocols.script import procedure_from_table
+
+        run = RunDirectory(os.fspath(run_dir))
+        meta = run.read_metadata()
+        if meta.get("status") == "completed":
+            return _result(run)
+        procedure, notes = procedure_from_table(meta["protocol"],
+                                                str(meta.get("protocol_file", "<run.json>")),
+                                                run.path)
+        for note in notes:
+            log.warning("%s", note)
+        self._check_kind(procedure)
+        with run.lock():
+            run.archive_incomplete()
+            completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+            run.reserve_space()
+            run.update(resumed=[*meta.get("resumed", []), self.clock_spec], storage_fault=None)
+            return self._execute(procedure, run, completed, show, subscribers)
+
+    def _check_kind(self, procedure: Procedure) -> None:
+        if procedure.rig != self.kind:
+            raise ConfigError("protocol", procedure.source, f"runs on a {procedure.rig} rig; "
+                              f"this session has the {self.kind} rig {self.spec.source}")
+
+    def _execute(self, procedure: Procedure, run: RunDirectory,
+                 completed: Mapping[int, Mapping[str, Any]] | None, show: bool,
+                 subscribers: Iterable[Callable[[Event], None]]) -> RunResult:
+        from gelrig.session import execute
+
+        bus = EventBus()
+        for subscriber in subscribers:
+            bus.subscribe(subscriber)
+        self.rig.end_monitoring()
+        execute(procedure, self.spec, self.clock, run, completed, show=show, bus=bus,
+                control=RunControl(), exit=lambda code: None, rig=self.rig)
+        return _result(run)
+
+    # -- manual motions, under the interlocks ------------------------------------------------
+    def home(self) -> Guarded:
+        """Home the stage (compression rig) and wait until it is done."""
+        rig = self._compression()
+        return self._guard("home", rig.home, toward=False)
+
+    def move_plate(self, speed: float, to: float | None = None,
+                   by: float | None = None) -> Guarded:
+        """Move the plate to ``to`` or ``by`` a distance (m) at ``speed`` (m/s), watched under
+        the rig's interlocks like a protocol step (a trip stops it within one sample and
+        raises :class:`InterlockTripped`); refused before homing (:class:`NotHomed`)."""
+        rig = self._compression()
+        if (to is None) == (by is None):
+            raise ConfigError("move_plate", f"to={to}, by={by}", "give exactly one of to, by")
+        return self._guard("move the plate", lambda: rig.move_plate(speed, to, by),
+                           toward=rig.toward(to, by))
+
+    def set_gap(self, gap: float) -> Guarded:
+        """Move the rheometer's lift to ``gap`` (m), watched under the interlocks."""
+        rig = self._shear()
+        return self._guard("set the gap", lambda: rig.set_gap(gap),
+                           toward=gap < rig.rheometer.gap())
+
+    def readings(self) -> dict[str, float]:
+        """Live values at rest (SI): position and force, or gap, angle, torque, normal
+        force."""
+        return self.rig.readings()
+
+    def _guard(self, what: str, start: Callable[[], object], toward: bool) -> Guarded:
+        self.control = RunControl()
+        done = guarded(self.rig, what, start, self.control, toward=toward)
+        if done.outcome == "tripped":
+            raise InterlockTripped(done.reason)
+        return done
+
+    def _compression(self) -> CompressionRig:
+        if not isinstance(self.rig, CompressionRig):
+            raise ConfigError("rig", self.spec.source, "is a shear rig; the plate is on the "
+                              "compression rig")
+        return self.rig
+
+    def _shear(self) -> ShearRig:
+        if not isinstance(self.rig, ShearRig):
+            raise ConfigError("rig", self.spec.source, "is a compression rig; the gap is on "
+                              "the shear rig")
+        return self.rig
+
+    # -- the way out ------------------------------------------------------------------------
+    def safe_stop(self, reason: str = "script ended") -> SafeState:
+        """Stop every motion, read it back, and put the sample in the rig's safe state
+        (retract the plate, lift the arm); returns what was verified."""
+        return self.rig.safe_stop(reason, SAFE_STOP_BUDGET)
+
+    def close(self) -> None:
+        """Stop all motion and release the instruments (and their simulators)."""
+        if self._closed:
+            return
+        self._closed = True
+        from gelrig.session import CLOSE_TIMEOUT
+        from protocols.safestop import bounded
+
+        try:
+            bounded(self.rig.close, CLOSE_TIMEOUT, "closing the rig")
+        except Exception as exc:
+            log.error("closing the rig: %s", exc, exc_info=True)
+
+    def __enter__(self) -> RigSession:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        try:
+            if exc is not None:  # an error or Ctrl-C in the with block: stop, make safe
+                safe = self.safe_stop(f"leaving the rig session: {type(exc).__name__}")
+                log.log(logging.INFO if safe.verified else logging.ERROR, "safe stop: %s",
+                        safe.line())
+                print(f"gelrig: {safe.line()}", file=sys.stderr)
+        finally:
+            self.close()
+
+
+def _procedure(protocol: Procedure | str | os.PathLike[str]) -> Procedure:
+    if isinstance(protocol, str | os.PathLike):
+        return load_procedure(os.fspath(protocol))
+    return protocol
+
+
+def _result(run: RunDirectory) -> RunResult:
+    meta = run.read_metadata()
+    return RunResult(str(meta.get("status", "?")), str(meta.get("reason") or ""), run.path,
+                     list(meta.get("steps", [])), meta.get("safe_state"))
+
+
+def open_rig(rig: str | os.PathLike[str] | RigSpec = "compression",
+             clock: str | Clock | None = None) -> RigSession:
+    """Open a rig: ``"compression"`` or ``"shear"`` (the built-in simulated rigs), a rig
+    file, or a parsed :class:`RigSpec`; on ``clock`` ``"virtual"`` (default for a simulated
+    rig), ``"real"`` (default otherwise), ``"paced:K"``, or a Clock. Use it as a context
+    manager: leaving the block stops everything, and by an error or Ctrl-C first puts the
+    sample in its safe state."""
+    spec = _rig_spec(rig)
+    made, text = _clock(clock, spec)
+    return RigSession(spec, made, text)
+
+
+def rehearse(protocol: Procedure | str | os.PathLike[str],
+             rig: str | os.PathLike[str] | RigSpec | None = None) -> RehearsalReport:
+    """What ``gelrig plan`` measures: the protocol (or script) run in virtual time on the
+    rig's twin (every instrument simulated under the same limits), counted, not recorded."""
+    from gelrig.factory import build_twin
+    from protocols.rehearsal import rehearse as rehearse_on
+
+    procedure = _procedure(protocol)
+    spec = _rig_spec(rig if rig is not None else procedure.rig)
+    twin = build_twin(spec)
+    try:
+        return rehearse_on(twin, procedure)
+    finally:
+        twin.close()
+
+
+def analyze(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | None = None,
+            **options: Any) -> Any:
+    """``gelrig analyze``: the report and fits of a run directory (see
+    :func:`gelrig.analyze_run.analyze_run` for the options)."""
+    from gelrig.analyze_run import analyze_run
+
+    return analyze_run(os.fspath(run_dir), None if out is None else os.fspath(out), **options)
+
+
+def script_main(argv: list[str] | None = None) -> int:
+    """``python script.py [options]`` as ``gelrig run script.py [options]``: put
+    ``raise SystemExit(gelrig.script_main())`` under ``if __name__ == "__main__":``."""
+    from gelrig.cli import main
+
+    args = sys.argv[1:] if argv is None else argv
+    return main(["run", os.path.abspath(sys.argv[0]), *args])
+
+
+def load_protocol(reference: str | os.PathLike[str]) -> Procedure:
+    """A protocol file, a script file (``.py``) or ``"paper:compression"`` /
+    ``"paper:shear"``, loaded and validated (nothing runs)."""
+    return load_procedure(os.fspath(reference))
+
+
+def register_step(definition: Any) -> Any:
+    """Class decorator: make a :class:`StepDefinition` subclass nameable by its ``kind`` from
+    scripts (``run.step("creep", ...)``) and from protocol files that list its module in
+    ``[protocol] step_kinds``."""
+    from protocols.steps import register
+
+    return register(definition)
+
+
+def step_kinds() -> dict[str, str]:
+    """Every step kind a protocol can name now (built-in and registered): kind -> rig."""
+    from protocols.steps import KINDS
+
+    return {kind: d.rig_kind for kind, d in KINDS.items()}

@@ -1,0 +1,207 @@
+"""Scripts as protocols: a Python function that decides its steps as it runs.
+
+A script is a function decorated with :func:`protocol`; it receives a :class:`Run` and asks
+it for steps, built-in or user-defined, with the same parameters as a protocol file::
+
+    @protocol(rig="compression", name="Relaxation series")
+    def series(run: Run) -> None:
+        run.step("compression_contact_search", speed="0.3 mm/s")
+        for strain in (0.02, 0.04, 0.06):
+            run.step("ramp_hold", name=f"hold at {strain:.0%}", strain=strain, hold="600 s")
+
+Every step runs through the runner exactly as a protocol file's step does: preflight against
+the rig's caps, interlocks on every sample, pause at checkpoints, abort at every block, its
+columns streamed to the run directory. A resumed run calls the script again from the top;
+steps the run completed before are not run again, :meth:`Run.step` returns their stored
+results, so a script must ask for the same steps in the same order given the same results
+(it is refused otherwise: :class:`protocols.runner.ReplayMismatch`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from instrument.errors import ConfigError
+from instrument.fields import Where
+from protocols.procedure import Procedure, StepSink
+from protocols.spec import RIGS, Step, load_protocol, make_step, paper_protocol, parse_protocol
+from protocols.steps import import_file
+from protocols.steps.base import StepDefinition, StepResult
+
+log = logging.getLogger("gelrig.script")
+
+Body = Callable[["Run"], None]
+
+
+@dataclass(frozen=True)
+class Script:
+    """A script protocol: its function, the rig kind it runs on, its name and file. A
+    :class:`protocols.procedure.Procedure` whose steps are known only as it runs."""
+
+    function: Body
+    rig: str
+    name: str
+    description: str = ""
+    #: the file the function is defined in (what run.json records, and a resume loads)
+    path: str = ""
+
+    @property
+    def source(self) -> str:
+        return self.path or f"<script {self.function.__qualname__}>"
+
+    @property
+    def steps(self) -> tuple[Step, ...]:
+        return ()
+
+    @property
+    def table(self) -> dict[str, Any]:
+        head: dict[str, Any] = {"name": self.name, "rig": self.rig,
+                                "description": self.description,
+                                "script": self.path, "entry": self.function.__name__}
+        if self.path and Path(self.path).is_file():
+            head["sha256"] = hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
+        return {"protocol": head}
+
+    def drive(self, sink: StepSink) -> None:
+        self.function(Run(sink, self))
+
+
+def protocol(rig: str, name: str | None = None, description: str = "") -> Callable[[Body],
+                                                                                   Script]:
+    """Decorator: make ``function(run)`` a protocol for the ``rig`` kind ("compression" or
+    "shear"), named ``name`` (default: the function's name)."""
+    if rig not in RIGS:
+        raise ConfigError("protocol(rig=...)", rig, f"allowed: {', '.join(RIGS)}")
+
+    def wrap(function: Body) -> Script:
+        code = getattr(function, "__code__", None)
+        path = str(Path(code.co_filename).resolve()) if code is not None else ""
+        doc = (function.__doc__ or "").strip()
+        return Script(function, rig, name or function.__name__.replace("_", " "),
+                      description or doc, path)
+
+    return wrap
+
+
+class Run:
+    """What a script's function receives: it asks for steps, checkpoints and log lines.
+
+    Motions belong in steps (built-in kinds, or your own :class:`StepDefinition`), where the
+    rig's interlocks watch every sample; the run itself exposes the rig only to read it.
+    """
+
+    def __init__(self, sink: StepSink, script: Script):
+        self._sink = sink
+        self._script = script
+        self._count = 0
+        #: every step's typed result so far, in order (replayed ones too)
+        self.results: list[StepResult] = []
+
+    @property
+    def rig_kind(self) -> str:
+        return self._script.rig
+
+    def step(self, kind: str | StepDefinition[Any, Any, Any] | type, name: str | None = None,
+             **params: Any) -> Any:
+        """Run the next step and return its typed result (e.g. a ``RampHoldResult``).
+
+        ``kind``: a step kind's name as protocol files write it (``"ramp_hold"``), or a step
+        definition (class or instance). ``params``: the same keys and values as in a
+        protocol file, unit strings (``hold="600 s"``) or SI numbers; checked the same way
+        (a bad value is a ConfigError naming the script, the step and the field)."""
+        index = self._count
+        self._count += 1
+        where = Where(f"step[{index}]", self._script.source)
+        built = make_step(kind, name, params, self._script.rig, where)
+        result = self._sink.step(built)
+        self.results.append(result)
+        return result
+
+    def checkpoint(self) -> None:
+        """A point between steps where a requested pause takes effect (nothing moves)."""
+        self._sink.checkpoint()
+
+    def log(self, message: str) -> None:
+        """A line in the run's log (RUN_DIR/gelrig.log)."""
+        log.info("%s", message)
+
+
+@dataclass
+class Loaded:
+    """A script file once loaded: its protocol and what is worth saying about it."""
+
+    script: Script
+    notes: list[str] = field(default_factory=list)
+
+
+def load_script(path: str | Path, entry: str | None = None) -> Script:
+    """Import a script file and return the protocol it defines (the one decorated with
+    :func:`protocol`; ``entry`` picks one by function name when it defines several)."""
+    file = Path(path).resolve()
+    if file.suffix != ".py":
+        raise ConfigError("script", str(path), "a Python file (.py)")
+    module = import_file(file, "script", None)
+    found = {v.function.__name__: v for v in vars(module).values() if isinstance(v, Script)}
+    if entry is not None:
+        if entry not in found:
+            raise ConfigError("script entry", entry, f"not a protocol of {file.name}; it "
+                              f"defines {', '.join(found) or 'none'}")
+        return found[entry]
+    if len(found) != 1:
+        what = (f"{len(found)} ({', '.join(found)})" if found else "none")
+        raise ConfigError("script", str(path), f"defines {what} protocols; a script defines "
+                          "one function decorated with @gelrig.protocol(rig=...)")
+    return next(iter(found.values()))
+
+
+#: Folder of a run directory that keeps a copy of the script that made it.
+COPY_DIR = "script"
+
+
+def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path) -> Loaded:
+    """The script a run.json's protocol table records (for resume): from its file, or from
+    the copy in the run directory when the file is gone; notes say which and whether it
+    changed since."""
+    head = table.get("protocol") if isinstance(table, Mapping) else None
+    if not isinstance(head, Mapping) or not isinstance(head.get("script"), str):
+        raise ConfigError("protocol.script", "missing", "run.json of a script run names its "
+                          "script", source)
+    path = Path(head["script"])
+    notes = []
+    if not path.is_file():
+        copy = run_dir / COPY_DIR / path.name
+        if not copy.is_file():
+            raise ConfigError("protocol.script", str(path), "is gone, and the run directory "
+                              "holds no copy of it", source)
+        notes.append(f"{path} is gone; resuming with the run's copy {copy}")
+        path = copy
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    if head.get("sha256") and digest != head["sha256"]:
+        notes.append(f"{path.name} changed since the run started; completed steps replay by "
+                     "name and kind")
+    return Loaded(load_script(path, str(head.get("entry") or "") or None), notes)
+
+
+def procedure_from_table(table: Mapping[str, Any], source: str,
+                         run_dir: Path) -> tuple[Procedure, list[str]]:
+    """What run.json's ``protocol`` table holds, ready to run again (resume): a protocol
+    file's steps, or the script it names; and notes for people (a script that changed)."""
+    head = table.get("protocol") if isinstance(table, Mapping) else None
+    if isinstance(head, Mapping) and "script" in head:
+        loaded = script_from_table(table, source, run_dir)
+        return loaded.script, loaded.notes
+    return parse_protocol(dict(table), source), []
+
+
+def load_procedure(reference: str) -> Procedure:
+    """A protocol file, a script (``.py``) or a shipped paper protocol (``paper:shear``)."""
+    if reference.startswith("paper:"):
+        return load_protocol(paper_protocol(reference.split(":", 1)[1]))
+    if reference.endswith(".py"):
+        return load_script(reference)
+    return load_protocol(reference)
