@@ -22,7 +22,7 @@ own packages imports this package.
   :class:`FitUpdate`, :class:`StepFinished`, :class:`Finished`, :class:`RunState`
 - clocks: :class:`VirtualClock`, :class:`RealClock`, :class:`PacedClock`
 - errors: :class:`GelrigError`, :class:`ConfigError`, :class:`LimitError`,
-  :class:`InterlockTripped`, :class:`InstrumentError`, :class:`NotHomed`
+  :class:`InterlockTripped`, :class:`InstrumentError`, :class:`NotHomed`, :class:`RunEnded`
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ _SURFACE: dict[str, str] = {
     "PacedClock": "instrument.clock",
     "GelrigError": "instrument.errors", "ConfigError": "instrument.errors",
     "LimitError": "instrument.errors", "InterlockTripped": "instrument.errors",
+    "RunEnded": "protocols.runner",
     "InstrumentError": "instrument.errors", "NotHomed": "protocols.rig",
 }
 
@@ -67,7 +68,7 @@ __all__ = [
     "Field", "FieldList", "Finished", "FitUpdate", "ForceRecorder", "ForceSensor",
     "GelrigError", "InstrumentError", "InterlockTripped", "LadderResult", "LimitError",
     "NotHomed", "PacedClock", "PlanCheck", "Progress", "RampHoldResult", "RealClock",
-    "Rheometer", "RigSession", "Run", "RunResult", "RunState", "Samples", "Script",
+    "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState", "Samples", "Script",
     "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "Stage", "StepContext",
     "StepDefinition", "StepFinished", "StepParams", "StepPlan", "StepResult", "StepStarted",
     "VirtualClock", "analyze", "load_protocol", "open_rig", "param", "protocol",
@@ -110,6 +111,7 @@ if TYPE_CHECKING:
         StepStarted,
     )
     from protocols.rig import CompressionLimits, CompressionRig, NotHomed, ShearLimits, ShearRig
+    from protocols.runner import RunEnded
     from protocols.script import Run, Script, protocol
     from protocols.steps.acquire import ForceRecorder
     from protocols.steps.arm import ArmRecorder

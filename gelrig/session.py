@@ -63,8 +63,11 @@ class Interrupts:
         self.presses += 1
         if self.presses == 1:
             self.control.pause()
-            self.say("pause requested: the run pauses at the next checkpoint; press Enter to "
-                     "resume, Ctrl-C again to abort")
+            where = ("the hold runs on (pausing would change the physics) and the run pauses "
+                     "at the checkpoint after it" if self.control.holding
+                     else "the run pauses at the next checkpoint")
+            self.say(f"pause requested: {where}; press Enter to resume, Ctrl-C again to "
+                     "abort")
             if sys.stdin is not None and sys.stdin.isatty():
                 threading.Thread(target=_resume_on_enter, args=(self.control,),
                                  daemon=True).start()

@@ -212,9 +212,11 @@ class Runner:
             self._end(index, step.name, RunState.ABORTED, "aborted", str(exc))
             raise RunEnded(self.state, str(exc)) from None
         except Exception as exc:  # an instrument's error, or a bug in a step kind
+            reason = f"{type(exc).__name__}: {exc}"
             if not isinstance(exc, GelrigError):
                 log.error("step %d (%s) raised", index, step.name, exc_info=exc)
-            reason = f"{type(exc).__name__}: {exc}"
+                where = _origin(exc)
+                reason += f" (at {where})" if where else ""
             self._end(index, step.name, RunState.FAILED, "failed", reason,
                       Fault(clock.now(), type(exc).__name__, str(exc)))
             raise RunEnded(self.state, reason) from None
@@ -276,13 +278,18 @@ class Runner:
 def _origin(exc: BaseException) -> str:
     """``file:line`` of the innermost frame of ``exc`` outside gelrig's own packages (where a
     script went wrong), or ''."""
+    import sysconfig
     import traceback
     from pathlib import Path
 
-    ours = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[1]
+    skip = [root / name for name in ("instrument", "drivers", "simulators", "protocols",
+                                     "gui", "gelrig")]
+    skip.append(Path(sysconfig.get_paths()["stdlib"]).resolve())
     found = ""
     for frame in traceback.extract_tb(exc.__traceback__):
         path = Path(frame.filename).resolve()
-        if not path.is_relative_to(ours) or "examples" in path.parts:
-            found = f"{Path(frame.filename).name}:{frame.lineno}"
+        if not ({"site-packages", "dist-packages"} & set(path.parts)
+                or any(path.is_relative_to(package) for package in skip)):
+            found = f"{path.name}:{frame.lineno}"
     return found

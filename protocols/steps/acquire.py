@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import ClassVar
 
 import numpy as np
 
@@ -32,6 +33,9 @@ COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_
 
 class ForceRecorder:
     """Reads force blocks, stamps them with the plate position, publishes, keeps a copy."""
+
+    #: the columns it publishes, with units: what a step using it declares as its ``columns``
+    columns_published: ClassVar[dict[str, str]] = COLUMNS
 
     def __init__(self, ctx: StepContext[CompressionRig], rate: float,
                  first_touch: float = math.nan, block_time: float = 0.1, keep: bool = True):

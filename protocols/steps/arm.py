@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -21,6 +22,9 @@ COLUMNS = {
 
 class ArmRecorder:
     """Streams points while the arm turns or rests, publishes them with pass labels."""
+
+    #: the columns it publishes, with units: what a step using it declares as its ``columns``
+    columns_published: ClassVar[dict[str, str]] = COLUMNS
 
     def __init__(self, ctx: StepContext[ShearRig], interval: float, read_period: float = 1.0):
         rig = ctx.rig

@@ -1,0 +1,208 @@
+"""The scripting API through the whole simulated rig: scripts run, fail, trip and resume like
+protocol files, from Python (``gelrig.open_rig``) and from the CLI (``gelrig run x.py``)."""
+
+from __future__ import annotations
+
+import inspect
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gelrig
+from gelrig.cli import main
+from instrument.store import read_step
+from protocols.rigfile import default_rig
+from protocols.steps import KINDS
+
+ROOT = Path(__file__).resolve().parents[2]
+
+TRAVEL = '''
+"""Two plate moves under a custom step kind; the second fails mid-motion while a file named
+"fail" lies next to this script."""
+
+import dataclasses
+import pathlib
+from typing import ClassVar
+
+import gelrig
+
+
+@dataclasses.dataclass(frozen=True)
+class TravelParams(gelrig.StepParams):
+    to: float = gelrig.param(gelrig.Field("to", "m", 5e-3, 0.0, 25e-3, display="mm"))
+    speed: float = gelrig.param(gelrig.Field("speed", "m/s", 0.5e-3, 0.0, 2.6e-3,
+                                             lo_open=True, display="mm/s"))
+
+
+@dataclasses.dataclass(frozen=True)
+class TravelResult(gelrig.StepResult):
+    reached_m: float
+
+
+@gelrig.register_step
+class Travel(gelrig.StepDefinition):
+    kind: ClassVar[str] = "test_travel"
+    rig = gelrig.CompressionRig
+    Params, Result = TravelParams, TravelResult
+    columns = gelrig.ForceRecorder.columns_published
+
+    def plan(self, params, limits):
+        return gelrig.StepPlan(params.to / params.speed, params.to)
+
+    def run(self, ctx, p):
+        stage = ctx.rig.stage
+        if not stage.status().homed:
+            stage.home(wait=True)
+        ctx.interlocks = ctx.rig.interlocks()
+        rec = gelrig.ForceRecorder(ctx, 100.0)
+        rec.start()
+        stage.set_velocity(p.speed, ctx.rig.limits.acceleration)
+        stage.move_to(p.to, wait=False)
+        blocks = 0
+        while stage.is_moving():
+            rec.read()
+            blocks += 1
+            if blocks == 20 and p.to > 3e-3 and pathlib.Path(__file__).with_name("fail").exists():
+                raise RuntimeError("the script's own bug, mid-motion")
+        return TravelResult(stage.position())
+
+
+@gelrig.protocol(rig="compression", name="two moves")
+def two_moves(run):
+    run.step("test_travel", name="to 2 mm", to="2 mm")
+    run.step("test_travel", name="to 4 mm", to="4 mm")
+'''
+
+SEARCH_AND_HOLD = '''
+import gelrig
+
+
+@gelrig.protocol(rig="compression", name="search and hold")
+def search_and_hold(run):
+    found = run.step("compression_contact_search", start="3 mm", confirm=1)
+    run.log(f"first touch at {found.first_touch_m * 1e3:.4f} mm")
+    run.step("ramp_hold", hold="30 s", strain_rate="0.02 /s", rate="100 Hz", terms=1)
+'''
+
+
+@pytest.fixture
+def travel_script(tmp_path: Path):
+    path = tmp_path / "travel.py"
+    path.write_text(TRAVEL)
+    yield path
+    KINDS.pop("test_travel", None)
+
+
+def test_a_script_that_raises_mid_motion_is_stopped_flushed_and_resumable(
+        travel_script: Path, tmp_path: Path, capsys) -> None:
+    (tmp_path / "fail").touch()
+    out = tmp_path / "run"
+    assert main(["run", str(travel_script), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "failed"
+    assert meta["reason"].startswith("RuntimeError: the script's own bug, mid-motion (at "
+                                     "travel.py:")
+    assert meta["safe_state"]["verified"] is True  # motion stopped and read back
+    first, second = meta["steps"]
+    assert (first["status"], second["status"]) == ("completed", "failed")
+    data = read_step(out / second["file"])  # flushed: what was read before the raise
+    assert data["t_s"].size >= 20
+    assert np.all(np.diff(data["position_m"]) >= -1e-9)
+    assert (out / "script" / "travel.py").read_text() == TRAVEL
+
+    (tmp_path / "fail").unlink()  # the bug fixed: resume runs the script again
+    assert main(["resume", str(out)]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "completed"
+    assert [s["status"] for s in meta["steps"]] == ["completed", "completed"]
+    assert meta["steps"][0]["started"] == first["started"]  # not run again
+    assert meta["steps"][1]["results"]["reached_m"] == pytest.approx(4e-3, abs=2e-6)
+    assert meta["interrupted_steps"][0]["status"] == "failed"
+
+
+def test_a_script_run_trips_an_interlock_within_one_sample(tmp_path: Path) -> None:
+    rig_file = tmp_path / "rig.toml"
+    rig_file.write_text(default_rig("compression").read_text().replace(
+        'max_force = "2 N"', 'max_force = "50 mN"'))
+    assert 'max_force = "50 mN"' in rig_file.read_text()
+    script = tmp_path / "hold.py"
+    script.write_text(SEARCH_AND_HOLD)
+    with gelrig.open_rig(rig_file) as rig:
+        result = rig.run(script, out=tmp_path / "run")
+    assert result.state == "aborted"
+    assert result.reason.startswith("interlock force")
+    assert result.safe_state is not None and result.safe_state["verified"]
+    force = read_step(result.path / result.steps[1]["file"])["force_N"]
+    beyond = np.flatnonzero(force > 0.05)
+    assert beyond.size == 1 and beyond[0] == force.size - 1  # recorded up to the first beyond
+
+
+def test_a_script_runs_from_python_and_its_results_come_back(tmp_path: Path) -> None:
+    script = tmp_path / "hold.py"
+    script.write_text(SEARCH_AND_HOLD)
+    seen: list[gelrig.Event] = []
+    with gelrig.open_rig("compression", clock="virtual") as rig:
+        result = rig.run(gelrig.load_protocol(script), out=tmp_path / "run",
+                         subscribers=[seen.append])
+    assert result.ok, result.reason
+    hold = result.results("ramp and hold")
+    assert hold["depth_m"] == pytest.approx(0.06 * 18.63e-3)
+    assert hold["first_touch_m"] == pytest.approx(6.2e-3, abs=5e-6)
+    assert any(isinstance(e, gelrig.FitUpdate) for e in seen)  # the live fit's events too
+    log = (result.path / "gelrig.log").read_text()
+    assert "gelrig.script: first touch at 6.19" in log or "first touch at 6.20" in log
+
+
+def test_leaving_a_session_by_an_error_stops_the_motion_first(capsys) -> None:
+    with pytest.raises(RuntimeError, match="oops"), gelrig.open_rig("compression") as rig:
+        rig.home()
+        rig.rig.stage.set_velocity(1e-3, 4e-3)
+        rig.rig.stage.move_to(5e-3, wait=False)  # left moving
+        assert rig.rig.stage.is_moving()
+        raise RuntimeError("oops")
+    err = capsys.readouterr().err
+    assert "motion stopped (verified)" in err
+
+
+def test_a_manual_move_in_a_session_trips_like_a_step(tmp_path: Path) -> None:
+    rig_file = tmp_path / "rig.toml"
+    rig_file.write_text(default_rig("compression").read_text().replace(
+        'max_force = "2 N"', 'max_force = "50 mN"'))
+    with gelrig.open_rig(rig_file) as rig:
+        with pytest.raises(gelrig.NotHomed):
+            rig.move_plate(1e-3, to=12e-3)
+        rig.home()
+        with pytest.raises(gelrig.InterlockTripped, match="interlock force"):
+            rig.move_plate(0.3e-3, to=12e-3)
+        values = rig.readings()
+        assert values["moving"] == 0.0
+        assert 6.4e-3 < values["position_m"] < 7.5e-3  # stopped at ~50 mN, past first touch
+
+
+def test_gelrig_plan_rehearses_a_script_and_bad_references_are_one_line(
+        tmp_path: Path, capsys) -> None:
+    script = tmp_path / "hold.py"
+    script.write_text(SEARCH_AND_HOLD)
+    assert main(["plan", str(script)]) == 0
+    out = capsys.readouterr().out
+    assert "decided by the script as it runs" in out
+    assert "1. ramp and hold: completed" in out and "rehearsal passed" in out
+    assert main(["run", str(tmp_path / "nope.py")]) == 2
+    assert "no such Python file" in capsys.readouterr().err
+    shear = ROOT / "protocols" / "rigs" / "shear.toml"
+    assert main(["run", str(script), "--rig", str(shear)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "needs a compression rig" in err
+
+
+def test_the_public_surface_is_listed_once_and_documented() -> None:
+    page = (ROOT / "docs" / "scripting.md").read_text()
+    for name in gelrig.__all__:
+        value = getattr(gelrig, name)
+        assert inspect.getdoc(value), f"gelrig.{name} has no docstring"
+        assert f"`{name}`" in page, f"docs/scripting.md does not list gelrig.{name}"
+    assert sorted(dir(gelrig)) == sorted([*gelrig.__all__, "__version__"])
