@@ -11,8 +11,10 @@ own packages imports this package.
 - write scripts: :func:`protocol`, :class:`Run`, :class:`Script`
 - write step kinds: :func:`register_step`, :class:`StepDefinition`, :class:`StepParams`,
   :class:`StepResult`, :class:`StepPlan`, :class:`PlanCheck`, :class:`StepContext`,
-  :class:`Field`, :class:`FieldList`, :class:`Choice`, :func:`param`, :class:`ForceRecorder`,
-  :class:`ArmRecorder`, :func:`step_kinds`
+  :class:`Field`, :class:`FieldList`, :class:`Choice`, :func:`param`, :class:`Where`,
+  :class:`ForceRecorder`, :class:`ArmRecorder`, :func:`step_kinds`, and the caps' checks
+  :func:`stage_speed_error`, :func:`stage_position_error`, :func:`arm_speed_error`,
+  :func:`gap_error` (for a step's ``preflight``)
 - the rigs and instrument contracts: :class:`CompressionRig`, :class:`ShearRig`,
   :class:`CompressionLimits`, :class:`ShearLimits`, :class:`Stage`, :class:`ForceSensor`,
   :class:`Rheometer`
@@ -41,7 +43,9 @@ _SURFACE: dict[str, str] = {
     "StepResult": "protocols.steps.base", "StepPlan": "protocols.steps.base",
     "PlanCheck": "protocols.steps.base", "StepContext": "protocols.context",
     "Field": "instrument.fields", "FieldList": "instrument.fields",
-    "Choice": "instrument.fields", "param": "instrument.fields",
+    "Choice": "instrument.fields", "param": "instrument.fields", "Where": "instrument.fields",
+    "stage_speed_error": "protocols.caps", "stage_position_error": "protocols.caps",
+    "arm_speed_error": "protocols.caps", "gap_error": "protocols.caps",
     "ForceRecorder": "protocols.steps.acquire", "ArmRecorder": "protocols.steps.arm",
     "CompressionRig": "protocols.rig", "ShearRig": "protocols.rig",
     "CompressionLimits": "protocols.rig", "ShearLimits": "protocols.rig",
@@ -71,8 +75,9 @@ __all__ = [
     "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState", "Samples", "Script",
     "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "Stage", "StepContext",
     "StepDefinition", "StepFinished", "StepParams", "StepPlan", "StepResult", "StepStarted",
-    "VirtualClock", "analyze", "load_protocol", "open_rig", "param", "protocol",
-    "register_step", "rehearse", "script_main", "step_kinds",
+    "VirtualClock", "Where", "analyze", "arm_speed_error", "gap_error", "load_protocol",
+    "open_rig", "param", "protocol", "register_step", "rehearse", "script_main",
+    "stage_position_error", "stage_speed_error", "step_kinds",
 ]
 
 if TYPE_CHECKING:
@@ -95,10 +100,16 @@ if TYPE_CHECKING:
         InterlockTripped,
         LimitError,
     )
-    from instrument.fields import Choice, Field, FieldList, param
+    from instrument.fields import Choice, Field, FieldList, Where, param
     from instrument.loadcell import ForceSensor
     from instrument.rheometer import Rheometer
     from instrument.stage import Stage
+    from protocols.caps import (
+        arm_speed_error,
+        gap_error,
+        stage_position_error,
+        stage_speed_error,
+    )
     from protocols.context import StepContext
     from protocols.events import (
         Event,

@@ -114,8 +114,13 @@ class PassForces:
 
 
 def moving_mask(p: RecordedPass, arm: float) -> BoolArray:
-    """Samples taken while the arm turns at (at least half) the pass speed."""
-    rate = np.gradient(p.angle, p.t) * arm * p.direction if p.t.size > 1 else np.zeros(p.t.size)
+    """Samples taken while the arm turns at (at least half) the pass speed. A record repeated
+    at the same time (the instrument's stream may carry one twice) takes its first's rate."""
+    first = np.r_[True, np.diff(p.t) > 0] if p.t.size else np.zeros(0, dtype=bool)
+    t, angle = p.t[first], p.angle[first]
+    if t.size < 2:
+        return np.zeros(p.t.size, dtype=bool)
+    rate = (np.gradient(angle, t) * arm * p.direction)[np.cumsum(first) - 1]
     return np.asarray(rate > 0.5 * p.speed, dtype=bool)
 
 

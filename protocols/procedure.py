@@ -9,17 +9,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from protocols.spec import Step
-    from protocols.steps.base import StepResult
-
-
-class StepSink(Protocol):
-    """Where a procedure sends its steps (the runner): runs one, returns its typed result; a
-    step a resumed run completed before is not run again, its stored result comes back."""
-
-    def step(self, step: Step) -> StepResult: ...
-
-    def checkpoint(self) -> None: ...
+    from protocols.spec import Step, StepSink
 
 
 class Procedure(Protocol):

@@ -28,8 +28,16 @@ from typing import Any
 
 from instrument.errors import ConfigError
 from instrument.fields import Where
-from protocols.procedure import Procedure, StepSink
-from protocols.spec import RIGS, Step, load_protocol, make_step, paper_protocol, parse_protocol
+from protocols.procedure import Procedure
+from protocols.spec import (
+    RIGS,
+    Step,
+    StepSink,
+    load_protocol,
+    make_step,
+    paper_protocol,
+    parse_protocol,
+)
 from protocols.steps import import_file
 from protocols.steps.base import StepDefinition, StepResult
 

@@ -19,15 +19,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from instrument.errors import ConfigError
 from instrument.fields import Where, read_toml
 from protocols.steps import KINDS, StepDefinition, load_step_modules
-from protocols.steps.base import StepParams
-
-if TYPE_CHECKING:
-    from protocols.procedure import StepSink
+from protocols.steps.base import StepParams, StepResult
 
 RIGS = ("compression", "shear")
 #: Longest step name: names become file names (``steps/NN_name.h5``).
@@ -45,6 +42,15 @@ class Step:
     @property
     def kind(self) -> str:
         return self.definition.kind
+
+
+class StepSink(Protocol):
+    """Where a procedure sends its steps (the runner): runs one, returns its typed result; a
+    step a resumed run completed before is not run again, its stored result comes back."""
+
+    def step(self, step: Step) -> StepResult: ...
+
+    def checkpoint(self) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -123,12 +129,11 @@ def make_step(kind: object, name: object, params: Mapping[str, Any], rig: str,
     step_name = definition.description or definition.kind if name is None else name
     if not isinstance(step_name, str) or not step_name.strip():
         raise where.error("name", step_name, "a non-empty string")
-    if (len(step_name) > MAX_STEP_NAME or not step_name.isprintable()
-            or any(c in step_name for c in "/\\")):
+    if len(step_name) > MAX_STEP_NAME or not step_name.isprintable():
         shown = step_name if len(step_name) <= 40 else f"{step_name[:37]}..."
         raise where.error("name", shown.encode("unicode_escape").decode(),
-                          f"printable, at most {MAX_STEP_NAME} characters, no / or \\ "
-                          "(it names the step's data file)")
+                          f"printable, at most {MAX_STEP_NAME} characters (the step's data "
+                          "file is named after it)")
     return Step(definition, step_name, definition.parse(params, where))
 
 

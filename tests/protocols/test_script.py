@@ -304,3 +304,13 @@ def test_load_script_finds_the_one_protocol_and_names_what_is_wrong(tmp_path) ->
         load_script(bad)
     with pytest.raises(ConfigError, match="allowed: compression, shear"):
         protocol(rig="tensile")
+
+
+def test_a_step_name_with_a_unit_names_a_safe_data_file(tmp_path) -> None:
+    from instrument.fields import Where
+    from instrument.store import RunDirectory
+    from protocols.spec import make_step
+
+    step = make_step("ramp_hold", "cycle at 1 um/s ../x", {}, "compression", Where("step[0]"))
+    path = RunDirectory(tmp_path).step_path(3, step.name)
+    assert path.parent == tmp_path / "steps" and path.name == "03_cycle_at_1_um_s_.._x.h5"
