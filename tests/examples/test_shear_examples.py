@@ -42,7 +42,8 @@ def paper_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, gelrig.Run
     return runs
 
 
-def test_the_paper_shear_script_is_the_protocol_file(paper_runs: dict[str, gelrig.RunResult]):
+def test_the_paper_shear_script_is_the_protocol_file(
+        paper_runs: dict[str, gelrig.RunResult]) -> None:
     toml, script = paper_runs["toml"], paper_runs["script"]
     assert toml.ok and script.ok, (toml.reason, script.reason)
     assert gelrig.load_protocol(EXAMPLES / "paper_shear.py").name == \
@@ -57,7 +58,7 @@ def test_the_paper_shear_script_is_the_protocol_file(paper_runs: dict[str, gelri
 
 
 def test_the_paper_shear_script_records_the_same_samples(
-        paper_runs: dict[str, gelrig.RunResult]):
+        paper_runs: dict[str, gelrig.RunResult]) -> None:
     toml, script = (RunDirectory(paper_runs[n].path) for n in ("toml", "script"))
     for index in (0, 1):
         ours, theirs = script.read_step(index), toml.read_step(index)
@@ -89,19 +90,19 @@ def custom_run(tmp_path_factory: pytest.TempPathFactory
     return result, orders
 
 
-def recorded_passes(run: RunDirectory, index: int) -> list[tuple[float, float, float, float]]:
+def recorded_passes(run: RunDirectory, index: int) -> list[tuple[float, ...]]:
     """(start time, overlap, speed, direction) of each labelled pass of a step, by pass."""
     columns = run.read_step(index)
     out = []
     for p in np.unique(columns["pass"][columns["pass"] >= 0]):
-        at = np.flatnonzero(columns["pass"] == p)
-        out.append((float(columns["t_s"][at[0]]), *(float(columns[c][at[0]]) for c in (
-            "overlap_m", "speed_m_s", "direction"))))
+        first = np.flatnonzero(columns["pass"] == p)[0]
+        out.append(tuple(float(columns[c][first]) for c in (
+            "t_s", "overlap_m", "speed_m_s", "direction")))
     return out
 
 
 def test_the_custom_ladder_records_its_passes_in_the_scripts_order(
-        custom_run: tuple[gelrig.RunResult, dict[str, list[str]]]):
+        custom_run: tuple[gelrig.RunResult, dict[str, list[str]]]) -> None:
     result, orders = custom_run
     assert result.ok, result.reason
     assert any(speeds != sorted(speeds, key=si) for speeds in orders.values())  # shuffled
@@ -125,7 +126,7 @@ def test_the_custom_ladder_records_its_passes_in_the_scripts_order(
 @pytest.mark.filterwarnings("ignore:divide by zero encountered:RuntimeWarning",
                             "ignore:invalid value encountered:RuntimeWarning")
 def test_the_custom_ladder_analysis_finds_l_g_at_the_chord_for_every_speed(
-        custom_run: tuple[gelrig.RunResult, dict[str, list[str]]], tmp_path: Path):
+        custom_run: tuple[gelrig.RunResult, dict[str, list[str]]], tmp_path: Path) -> None:
     result, orders = custom_run
     run = RunDirectory(result.path)
     analysis = gelrig.analyze(result.path, tmp_path / "analysis", fit_model=False)
@@ -142,7 +143,7 @@ def test_the_custom_ladder_analysis_finds_l_g_at_the_chord_for_every_speed(
     check_features(rows)  # l_g = chord (1 %) at every speed, C = AC, mu, growth with speed
 
 
-def test_the_whole_custom_ladder_rehearses_in_its_order():
+def test_the_whole_custom_ladder_rehearses_in_its_order() -> None:
     report = gelrig.rehearse(EXAMPLES / "custom_ladder.py")
     assert report.ok, report.reason
     script = gelrig.load_protocol(EXAMPLES / "custom_ladder.py")
