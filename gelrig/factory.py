@@ -163,7 +163,8 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
                 clock, plate, first_touch=truth.first_touch, vectorized=True,
                 sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
                 chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
-                noise_rms=truth.noise * chain.sensitivity, material=truth.material or PLATES)
+                noise_rms=truth.noise * chain.sensitivity, material=truth.material or PLATES,
+                unloading=truth.unloading)
             if in_process:
                 import nidaqmx
 

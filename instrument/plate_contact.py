@@ -40,6 +40,8 @@ class PlateSphereContact:
     ``plate_position`` is called per sample time unless ``vectorized`` is True, in which case
     it is called once per block with an array of times (much faster at 1 kHz).
     ``max_gap`` (s) is the longest step the history is advanced by between queried samples.
+    ``unloading`` picks the contact model: ``"cutoff"`` (the paper's) or ``"mdr"``
+    (physics.md 1b; :func:`~instrument.contact_models.make_contact`).
     """
 
     def __init__(
@@ -52,6 +54,7 @@ class PlateSphereContact:
         direction: int = 1,
         vectorized: bool = False,
         max_gap: float = 1.0,
+        unloading: str = "cutoff",
     ):
         if not (math.isfinite(sphere_radius) and sphere_radius > 0):
             raise ConfigError("sphere_radius", sphere_radius, "must be a finite length > 0 m")
@@ -69,7 +72,7 @@ class PlateSphereContact:
         self.max_gap = float(max_gap)
         self._position = plate_position
         self._vectorized = vectorized
-        self._contact = make_contact(material, self.sphere_radius)
+        self._contact = make_contact(material, self.sphere_radius, unloading)
 
     @property
     def t_last(self) -> float | None:

@@ -122,6 +122,9 @@ class CompressionTruth(Config):
                                      display="mm"))
     noise: float = param(Field("noise", "N", 2e-4, 0.0, 0.1, help="force noise (rms)"))
     seed: float = param(Field("seed", "", 0, 0, 2**31, integer=True))
+    unloading: str = param(Choice("unloading", UNLOADING_MODELS, "cutoff",
+                                  help="plate-sphere contact on unloading: the paper's cutoff, "
+                                       "or MDR (physics.md 1b)"))
     material: Material | None = None
 
 

@@ -30,17 +30,19 @@ def compression_daq(
     channel: str = "ai0",
     spec: DeviceSpec | None = None,
     buffer_size: int | None = None,
+    unloading: str = "cutoff",
 ) -> SimulatedUsb6001:
     """A simulated USB-6001 whose ``channel`` sees the load cell on the plate-sphere contact.
 
     ``plate_position(t)`` (m) is the stage's plate position on ``clock``; ``first_touch`` (m)
     the stage position where the plate meets the sphere's top (see instrument.plate_contact for
     the sign convention). ``chain`` is the simulated rig's true chain (default: the nominal
-    chain with a :data:`SIM_OFFSET` conditioner offset).
+    chain with a :data:`SIM_OFFSET` conditioner offset). ``unloading``: the contact model on
+    unloading, ``"cutoff"`` (the paper's) or ``"mdr"`` (physics.md 1b).
     """
     contact = PlateSphereContact(
         material, sphere_radius, first_touch, plate_position,
-        direction=direction, vectorized=vectorized,
+        direction=direction, vectorized=vectorized, unloading=unloading,
     )
     signal = LoadCellSignal(contact, chain or LoadCellChain(offset=SIM_OFFSET), noise_rms, seed)
     return SimulatedUsb6001(clock, {channel: signal}, spec=spec, buffer_size=buffer_size)

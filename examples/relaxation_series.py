@@ -1,0 +1,30 @@
+"""A relaxation series: find first touch, then ramp and hold at 2, 4 and 6 % strain of the
+diameter (0.002 /s, 600 s holds at 100 Hz), with the plate backed off and the force recorded
+for 120 s between holds (``rest``, from compression_steps.py). Records one step per hold
+(force, position and overlap columns; results: the relaxation fits of each hold) and one per
+rest (the force baseline and its drift).
+
+    gelrig run examples/relaxation_series.py --out runs/series
+    gelrig plan examples/relaxation_series.py
+"""
+
+import compression_steps  # noqa: F401 (registers rest, load_unload, creep)
+
+import gelrig
+
+STRAINS = (0.02, 0.04, 0.06)
+
+
+@gelrig.protocol(rig="compression", name="Relaxation series at 2, 4 and 6 % strain")
+def relaxation_series(run: gelrig.Run) -> None:
+    """Contact search, then ramp_hold at each strain with a rest between holds."""
+    run.step("compression_contact_search", name="contact search", speed="0.3 mm/s")
+    for i, strain in enumerate(STRAINS):
+        if i:
+            run.step("rest", name=f"rest {i}", duration="120 s", clear="2 mm")
+        run.step("ramp_hold", name=f"hold at {strain:.0%}", diameter="18.63 mm",
+                 strain=strain, strain_rate="0.002 /s", hold="600 s", rate="100 Hz", terms=1)
+
+
+if __name__ == "__main__":
+    raise SystemExit(gelrig.script_main())
