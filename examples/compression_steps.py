@@ -30,7 +30,7 @@ Rig = gelrig.CompressionRig
 Ctx = gelrig.StepContext[gelrig.CompressionRig]
 Limits = gelrig.CompressionLimits | gelrig.ShearLimits
 #: what the force recorder records (SI units): the columns of every step here
-COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_range": "1"}
+COLUMNS = gelrig.ForceRecorder.columns_published
 
 
 def _first_touch_field() -> Any:
@@ -48,23 +48,8 @@ def _touch_problems(kind: str, first_touch: float | None, span: tuple[float, flo
         if any(issubclass(r, gelrig.SearchResult) for r in earlier):
             return []
         return [f"{kind} needs first_touch, or a contact search before it"]
-    why = [_position_error(first_touch + d, rig) for d in span]
+    why = [gelrig.stage_position_error(first_touch + d, rig.stage_caps) for d in span]
     return [w for w in why if w]
-
-
-def _position_error(position: float, rig: Rig) -> str | None:
-    caps = rig.stage_caps
-    if caps.min_position_m <= position <= caps.max_position_m:
-        return None
-    return (f"target {position * 1e3:.4f} mm beyond the stage's travel "
-            f"[{caps.min_position_m * 1e3:g}, {caps.max_position_m * 1e3:g}] mm")
-
-
-def _speed_error(speed: float, rig: Rig) -> str | None:
-    cap = rig.stage_caps.max_velocity_m_s
-    if speed <= cap:
-        return None
-    return f"speed {speed * 1e3:.4g} mm/s above the stage's max_velocity {cap * 1e3:g} mm/s"
 
 
 def _first_touch(ctx: Ctx, given: float | None, kind: str) -> float:
@@ -159,9 +144,10 @@ class Rest(gelrig.StepDefinition[gelrig.CompressionRig, RestParams, RestResult])
 
     def preflight(self, params: RestParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:
-        why = [_speed_error(rig.limits.fast_speed, rig)]
+        why = [gelrig.stage_speed_error(rig.limits.fast_speed, rig.stage_caps)]
         if params.first_touch is not None:
-            why.append(_position_error(max(params.first_touch - params.clear, 0.0), rig))
+            why.append(gelrig.stage_position_error(max(params.first_touch - params.clear, 0.0),
+                                                   rig.stage_caps))
         return [w for w in why if w]
 
     def run(self, ctx: Ctx, params: RestParams) -> RestResult:
@@ -271,7 +257,9 @@ class LoadUnload(gelrig.StepDefinition[gelrig.CompressionRig, LoadUnloadParams,
     def preflight(self, params: LoadUnloadParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:
         p = params
-        why = [_speed_error(p.speed, rig), _speed_error(rig.limits.fast_speed, rig)]
+        caps = rig.stage_caps
+        why = [gelrig.stage_speed_error(p.speed, caps),
+               gelrig.stage_speed_error(rig.limits.fast_speed, caps)]
         if p.turn > rig.limits.max_overlap:
             why.append(f"depth {p.turn * 1e3:.4f} mm beyond the overlap limit "
                        f"{rig.limits.max_overlap * 1e3:g} mm ([limits] max_overlap)")
@@ -394,7 +382,9 @@ class Creep(gelrig.StepDefinition[gelrig.CompressionRig, CreepParams, CreepResul
     def preflight(self, params: CreepParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:
         p, limits = params, rig.limits
-        why = [_speed_error(p.speed, rig), _speed_error(limits.fast_speed, rig)]
+        caps = rig.stage_caps
+        why = [gelrig.stage_speed_error(p.speed, caps),
+               gelrig.stage_speed_error(limits.fast_speed, caps)]
         if p.force >= limits.max_force:
             why.append(f"force {p.force * 1e3:g} mN at or above the force limit "
                        f"{limits.max_force * 1e3:g} mN ([limits] max_force)")

@@ -196,3 +196,25 @@ def test_custom_kinds_refuse_before_anything_moves(tmp_path, body, why):
     assert result.state == "failed" and why in result.reason, result.reason
     assert "refused before" in result.reason
     assert all(not s.get("samples") for s in result.steps)
+
+
+def test_the_paper_compression_script_is_the_protocol_file(tmp_path):
+    """examples/paper_compression.py against paper:compression on the same rig and seed:
+    the same steps, parameters, results and samples (the 3000 s hold at 1 kHz)."""
+    script = run_example("paper_compression.py", tmp_path / "script")
+    with gelrig.open_rig("compression") as session:
+        toml = session.run("paper:compression", out=tmp_path / "toml")
+    assert toml.ok, toml.reason
+    assert gelrig.load_protocol(EXAMPLES / "paper_compression.py").name == \
+        gelrig.load_protocol("paper:compression").name
+    assert [(s["name"], s["kind"]) for s in script.steps] == \
+        [(s["name"], s["kind"]) for s in toml.steps] == \
+        [("contact search", "compression_contact_search"), ("ramp and hold", "ramp_hold")]
+    for ours, theirs in zip(script.steps, toml.steps, strict=True):
+        assert ours["params"] == theirs["params"], ours["name"]
+        assert ours["results"] == theirs["results"], ours["name"]
+        assert ours["samples"] == theirs["samples"] > 0, ours["name"]
+    assert script.results("ramp and hold")["fits"][0]["G_e"] > 0
+    ours, theirs = columns(script, script.steps[1]), columns(toml, toml.steps[1])
+    for column, values in theirs.items():
+        np.testing.assert_array_equal(ours[column], values, err_msg=column)
