@@ -198,8 +198,10 @@ class RigSession:
                            toward=gap < rig.rheometer.gap())
 
     def readings(self) -> dict[str, float]:
-        """Live values at rest (SI): position and force, or gap, angle, torque, normal
-        force."""
+        """Live values at rest (SI): position and force (the mean of the last 0.1 s), or gap,
+        angle, torque, normal force. Waits 0.1 s on the session's clock for fresh samples."""
+        self.rig.readings()  # starts the idle force readout if it is not running
+        self.clock.sleep(0.1)
         return self.rig.readings()
 
     def _guard(self, what: str, start: Callable[[], object], toward: bool) -> Guarded:
@@ -251,8 +253,26 @@ class RigSession:
                 log.log(logging.INFO if safe.verified else logging.ERROR, "safe stop: %s",
                         safe.line())
                 print(f"gelrig: {safe.line()}", file=sys.stderr)
+            else:
+                self._unload_if_loaded()
         finally:
             self.close()
+
+    def _unload_if_loaded(self) -> None:
+        """Leaving normally with the sample still loaded (a manual move into it): unload it
+        to the rig's safe position first, and say so."""
+        try:
+            self.rig.stop_all()
+            why = self.rig.load_state(self.readings())
+        except Exception as exc:  # cannot tell: make it safe all the same
+            why = f"its state could not be read ({type(exc).__name__}: {exc})"
+        if why is None:
+            return
+        safe = self.rig.unload()
+        log.log(logging.INFO if safe.verified else logging.ERROR, "unload on leaving: %s",
+                safe.line())
+        print(f"gelrig: the sample was loaded ({why}) when the rig session ended: "
+              f"{safe.line()}", file=sys.stderr)
 
 
 def _procedure(protocol: Procedure | str | os.PathLike[str]) -> Procedure:

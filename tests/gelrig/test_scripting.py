@@ -168,7 +168,7 @@ def test_leaving_a_session_by_an_error_stops_the_motion_first(capsys) -> None:
     assert "motion stopped (verified)" in err
 
 
-def test_a_manual_move_in_a_session_trips_like_a_step(tmp_path: Path) -> None:
+def test_a_manual_move_in_a_session_trips_like_a_step(tmp_path: Path, capsys) -> None:
     rig_file = tmp_path / "rig.toml"
     rig_file.write_text(default_rig("compression").read_text().replace(
         'max_force = "2 N"', 'max_force = "50 mN"'))
@@ -181,6 +181,12 @@ def test_a_manual_move_in_a_session_trips_like_a_step(tmp_path: Path) -> None:
         values = rig.readings()
         assert values["moving"] == 0.0
         assert 6.4e-3 < values["position_m"] < 7.5e-3  # stopped at ~50 mN, past first touch
+        assert capsys.readouterr().err == ""
+    # left normally with the plate in the sphere: unloaded first (first touch unknown here,
+    # so all the way back), and said
+    err = capsys.readouterr().err
+    assert "the sample was loaded (4" in err and "mN on the sample" in err
+    assert "motion stopped (verified); plate retracted to 0.000 mm" in err
 
 
 def test_gelrig_plan_rehearses_a_script_and_bad_references_are_one_line(
