@@ -63,8 +63,11 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
         with client:
             yield client
         return
+    # The scheduler's HTTP server starts even without a dashboard, on 8787 by default: a free
+    # port instead, so that two campaigns (or a campaign and a test) can run side by side.
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address="127.0.0.1:0",
+                           silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
         yield client
 

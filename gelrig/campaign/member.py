@@ -37,7 +37,7 @@ def run_protocol(rig: Any, ref: str, table: dict[str, Any] | None, run_dir: Path
     ``run_dir``; returns (final state, reason). The seam for other kinds of protocol."""
     if ref.endswith(SCRIPT_SUFFIXES):
         raise ConfigError("[campaign] protocol", ref, "scripts as campaign protocols: not yet")
-    from gelrig.session import metadata
+    from gelrig.session import LOG_NAME, metadata, run_logging
     from instrument.store import RunDirectory
     from protocols.session import RecordedRun
     from protocols.spec import parse_protocol
@@ -46,9 +46,10 @@ def run_protocol(rig: Any, ref: str, table: dict[str, Any] | None, run_dir: Path
         raise ConfigError("[campaign] protocol", ref, "a protocol file's table is needed")
     protocol = parse_protocol(table, ref)
     run = RunDirectory.create(run_dir, metadata(protocol, rig_spec, "virtual"))
-    recorded = RecordedRun(rig, protocol).record(run)
-    recorded.runner.watched = False  # nobody watches: no live refits of a fixed hold
-    state = recorded.run()
+    with run_logging(run.path / LOG_NAME):  # the run's log, not the worker's stderr
+        recorded = RecordedRun(rig, protocol).record(run)
+        recorded.runner.watched = False  # nobody watches: no live refits of a fixed hold
+        state = recorded.run()
     return state.value, recorded.reason
 
 
