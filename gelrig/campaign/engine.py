@@ -34,6 +34,8 @@ class EngineStats:
     skipped: int = 0
     failed: int = 0
     wall_s: float = 0.0
+    #: Wall s to start (or reach) the cluster and load the member code on every worker.
+    startup_s: float = 0.0
     workers: int = 0
     where: str = ""
 
@@ -72,6 +74,22 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
         yield client
 
 
+#: What a member imports: loaded on every worker before the members start.
+MEMBER_MODULES = ("matplotlib.pyplot", "scipy.optimize", "nidaqmx", "h5py", "gelrig.factory",
+                  "gelrig.analyze_run", "instrument.model_fit", "protocols.session")
+
+
+def _load_member_code() -> None:
+    """Import what a member runs, once per worker (counted in the startup, not per member)."""
+    import importlib
+
+    import matplotlib
+
+    matplotlib.use("Agg")  # a worker draws the member's report figures off screen
+    for name in MEMBER_MODULES:
+        importlib.import_module(name)
+
+
 def _lost(member: MemberSpec, exc: BaseException) -> dict[str, Any]:
     """The record of a member whose task itself failed (e.g. its worker died)."""
     text = " ".join(str(exc).split()) or type(exc).__name__
@@ -103,6 +121,8 @@ def run_members(
     n = workers or default_workers()
     with dask_client(scheduler, n, processes) as client, _bar(progress, len(members),
                                                               stats.skipped) as advance:
+        client.run(_load_member_code)
+        stats.startup_s = time.perf_counter() - start
         stats.workers = len(client.scheduler_info().get("workers", {})) or n
         stats.where = scheduler or f"LocalCluster, {n} worker(s)"
         futures = {client.submit(run_member, m, key=f"gelrig-member-{m.member_id}",

@@ -1,0 +1,94 @@
+"""Campaign throughput on Dask: members per minute with 1 and 2 local workers, the scaling
+efficiency, and Dask's overhead per member against the same members run in one process.
+
+Run: python benchmarks/bench_campaign.py [--members 8] [--repeats 3]
+
+The members are the tests' tiny compression campaign (the paper protocol with a 60 s hold at
+100 Hz: about 2 s a member) over ``--members`` noise seeds. The baseline, measured in the same
+run, calls :func:`gelrig.campaign.member.run_member` on each member in this process, one after
+the other (warm: one member is run first, untimed). A Dask run is a LocalCluster of process
+workers; its start (cluster up, member code imported on every worker) is reported apart and
+left out of the members' wall time. Medians over ``--repeats``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from gelrig.campaign.engine import run_members  # noqa: E402
+from gelrig.campaign.member import run_member  # noqa: E402
+from gelrig.campaign.spec import MemberSpec, parse_campaign  # noqa: E402
+from gelrig.campaign.store import ResultStore  # noqa: E402
+
+CAMPAIGN = {
+    "campaign": {"name": "bench", "protocol": "paper:compression", "replicates": 1},
+    "params": {"step[1].hold": "60 s", "step[1].rate": "100 Hz"},
+}
+
+
+def members(n: int, first_seed: int) -> list[MemberSpec]:
+    table = {**CAMPAIGN, "campaign": {**CAMPAIGN["campaign"], "replicates": n,
+                                      "first_seed": first_seed}}
+    return list(parse_campaign(table, "bench").members)
+
+
+def serial(batch: list[MemberSpec]) -> float:
+    """Wall s of the members run one after the other in this process."""
+    t0 = time.perf_counter()
+    for m in batch:
+        if run_member(m)["status"] != "ok":
+            raise SystemExit(f"member {m.member_id} failed")
+    return time.perf_counter() - t0
+
+
+def dask(batch: list[MemberSpec], workers: int) -> tuple[float, float]:
+    """(members' wall s, startup s) on a LocalCluster of ``workers`` processes."""
+    with tempfile.TemporaryDirectory() as tmp:
+        stats = run_members(batch, ResultStore(Path(tmp)), workers=workers, progress=False)
+    if stats.failed:
+        raise SystemExit(f"{stats.failed} member(s) failed")
+    return stats.wall_s - stats.startup_s, stats.startup_s
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--members", type=int, default=8)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    n = args.members
+    run_member(members(1, 10_000)[0])  # warm this process
+    base, one, two, start1, start2 = [], [], [], [], []
+    for r in range(args.repeats):
+        batch = members(n, 1 + r * n)  # fresh seeds: nothing is skipped
+        base.append(serial(batch))
+        wall, start = dask(batch, 1)
+        one.append(wall)
+        start1.append(start)
+        wall, start = dask(batch, 2)
+        two.append(wall)
+        start2.append(start)
+    b, w1, w2 = (statistics.median(x) for x in (base, one, two))
+    rate = {k: n / v * 60 for k, v in (("base", b), ("1", w1), ("2", w2))}
+    print(f"{n} members (paper compression, 60 s hold at 100 Hz), medians of {args.repeats}")
+    print(f"one process (baseline): {b:.2f} s, {rate['base']:.1f} members/min")
+    print(f"Dask, 1 worker:  {w1:.2f} s, {rate['1']:.1f} members/min "
+          f"(ratio to the baseline {rate['1'] / rate['base']:.2f}); "
+          f"cluster start {statistics.median(start1):.2f} s")
+    print(f"Dask, 2 workers: {w2:.2f} s, {rate['2']:.1f} members/min "
+          f"(ratio to the baseline {rate['2'] / rate['base']:.2f}); "
+          f"cluster start {statistics.median(start2):.2f} s")
+    print(f"scaling efficiency 1 -> 2 workers: {rate['2'] / (2 * rate['1']) * 100:.0f} %")
+    print(f"Dask overhead per member (1 worker against one process): "
+          f"{(w1 - b) / n * 1e3:+.0f} ms ({(w1 - b) / b * 100:+.1f} %)")
+
+
+if __name__ == "__main__":
+    main()
