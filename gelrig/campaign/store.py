@@ -31,6 +31,9 @@ class ResultStore:
         self.parts = self.out / PARTS
         if self.out.exists() and not self.out.is_dir():
             raise ConfigError("--out", str(self.out), "is a file, not a folder; name a folder")
+
+    def _create(self) -> None:
+        """The folders, made when the first record is written."""
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -49,6 +52,7 @@ class ResultStore:
 
     def write(self, record: Mapping[str, Any]) -> Path:
         """Store one member's record durably (whole or not at all)."""
+        self._create()
         path = self._part(str(record["member_id"]))
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         pq.write_table(pa.Table.from_pylist([dict(record)]), tmp)
@@ -72,6 +76,7 @@ class ResultStore:
                   if self._part(i).exists()]
         table = (pa.concat_tables(tables, promote_options="permissive") if tables
                  else pa.table({"member_id": pa.array([], pa.string())}))
+        self._create()
         path = self.out / RESULTS
         tmp = path.with_name(f".{path.name}.tmp")
         pq.write_table(table, tmp)

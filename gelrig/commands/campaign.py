@@ -55,9 +55,10 @@ def run(args: argparse.Namespace) -> int:
     if args.keep_runs:
         runs = (out / "runs").resolve()
         members = [dataclasses.replace(m, keep_dir=str(runs / m.member_id)) for m in members]
+    grids = ", ".join(f"{k} x{len(v)}" for k, v in {**spec.truth_grid, **spec.param_grid}
+                      .items() if len(v) > 1) or "no grid"
     print(f"campaign {spec.name!r}: {len(members)} member(s) of {spec.protocol_ref} "
-          f"({len(spec.truth_grid)} truth axis/axes, {len(spec.param_grid)} parameter "
-          f"axis/axes, {spec.replicates} seed(s)); results in {out.resolve()}")
+          f"({grids}; {spec.replicates} seed(s)); results in {out.resolve()}")
     stats = run_members(members, store, workers=args.workers, scheduler=args.scheduler,
                         retry_failed=args.retry_failed, progress=not args.no_progress)
     if stats.skipped:

@@ -48,3 +48,17 @@ def test_four_members_on_a_local_cluster_with_a_failing_truth(tmp_path):
     assert (page.parent / "variants.csv").exists()
     assert coverage(list(rows.values()), "G_e").n == 2
     assert summary_lines(list(rows.values()))[0] == "4 member(s): 2 ok, 0 incomplete, 2 failed"
+
+
+def test_members_run_on_an_existing_scheduler(tmp_path):
+    from distributed import LocalCluster
+
+    spec = load_campaign(tiny.write(tmp_path, tiny.COMPRESSION, replicates=2))
+    store = ResultStore(tmp_path / "out")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address="127.0.0.1:0") as cluster:
+        stats = run_members(spec.members, store, scheduler=cluster.scheduler_address,
+                            progress=False)
+    assert stats.where == cluster.scheduler_address and stats.submitted == 2
+    rows = store.consolidate(m.member_id for m in spec.members).to_pylist()
+    assert [r["status"] for r in rows] == ["ok", "ok"], [r["error"] for r in rows]
