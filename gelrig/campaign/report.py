@@ -67,6 +67,14 @@ def relative_errors(rows: Sequence[Row], name: str) -> np.ndarray:
     return arr[np.isfinite(arr)]
 
 
+def z_scores(rows: Sequence[Row], name: str) -> np.ndarray:
+    """(fit - truth) / reported s.e. of ``name``: spread 1 when the s.e. is honest."""
+    out = [(_num(r, f"fit.{name}") - _num(r, f"truth.{name}")) / _num(r, f"se.{name}")
+           for r in rows]
+    arr = np.asarray(out, dtype=float)
+    return arr[np.isfinite(arr)]
+
+
 def coverage(rows: Sequence[Row], name: str) -> Coverage:
     """How many finished rows' [lo, hi] of ``name`` hold its truth."""
     hits = n = 0
@@ -135,9 +143,12 @@ def summary_lines(rows: Sequence[Row]) -> list[str]:
         err, cov = relative_errors(ok, name), coverage(ok, name)
         lo, hi = cov.band()
         sd = float(np.std(err, ddof=1)) if err.size > 1 else math.nan
+        z = z_scores(ok, name)
+        z_sd = float(np.std(z, ddof=1)) if z.size > 1 else math.nan
         lines.append(f"  {name:12s} bias {np.mean(err) * 100:+.3f} %, sd {sd * 100:.3f} %, "
                      f"95 % interval holds the truth in {cov.hits}/{cov.n} = "
-                     f"{cov.fraction * 100:.0f} % (binomial 95 %: {lo * 100:.0f}-{hi * 100:.0f} %)")
+                     f"{cov.fraction * 100:.0f} % (binomial 95 %: {lo * 100:.0f}-{hi * 100:.0f} %)"
+                     f"; error / s.e. has sd {z_sd:.2f}")
     for r in failed[:3]:
         lines.append(f"  failed {r.get('member_id')} (seed {r.get('seed')}): {r.get('error')}")
     return lines

@@ -15,6 +15,7 @@ from gelrig.campaign.report import (
     relative_errors,
     variant_rows,
     write_campaign_report,
+    z_scores,
 )
 
 
@@ -72,3 +73,9 @@ def test_lclg_separation_between_two_truths(tmp_path):
     sd = np.std([0.90, 0.92], ddof=1)
     assert float(csv[1].split(",")[sep]) == pytest.approx(0.10 / sd)
     assert "lclg_vs_speed.png" in page.read_text()
+
+
+def test_z_scores_measure_errors_in_reported_standard_errors():
+    rows = [_row(i, 2000 + d, 2000 + d - 3.92 * 5, 2000 + d + 3.92 * 5)  # s.e. 10
+            for i, d in enumerate((-20.0, 0.0, 20.0))]
+    np.testing.assert_allclose(z_scores(rows, "tau_1"), [-2.0, 0.0, 2.0])
