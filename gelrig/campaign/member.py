@@ -189,6 +189,7 @@ def _run(member: MemberSpec) -> dict[str, Any]:
             a, sim = member.analysis, rig_spec.simulator
             options = {"r1": sim.r1, "r2": sim.r2, "terms": a.terms,
                        "fit_geometry": a.fit_geometry, "anisotropic": a.anisotropic,
+                       "fit_model": a.model_fit,
                        "unloading": sim.unloading if a.unloading == "truth" else a.unloading}
         result = analyze_run(run_dir, run_dir / "analysis", **options)
         out.update(fitted_columns(result))

@@ -15,6 +15,7 @@ the value as written and what is allowed::
     [analysis]                        # optional: how each member is analysed
     terms = 1                         # relaxation terms of the shear model fit
     unloading = "cutoff"              # model fitted: "cutoff", "mdr" or "truth" (the member's)
+    model_fit = true                  # false: l_c, l_g and mu per pass only (no ladder fit)
 
     [simulator]                       # the rig file's [simulator] keys; a list is a grid
     mu = [2e-3, 5e-3]
@@ -29,6 +30,7 @@ A list-valued field (``relax``, ``speeds``) takes a list of such lists as its gr
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -50,6 +52,7 @@ _ANALYSIS: dict[str, Spec] = {
     "unloading": Choice("unloading", ("cutoff", "mdr", "truth"), "cutoff"),
     "anisotropic": Choice("anisotropic", ("false", "true"), "false"),
     "fit_geometry": Choice("fit_geometry", ("true", "false"), "true"),
+    "model_fit": Choice("model_fit", ("true", "false"), "true"),
 }
 #: Protocol references that name a script: wired in with issue 17's scripting API.
 SCRIPT_SUFFIXES = (".py",)
@@ -63,6 +66,8 @@ class Analysis:
     unloading: str = "cutoff"
     anisotropic: bool = False
     fit_geometry: bool = True
+    #: The ladder-wide model fit (shear); without it a member measures l_c, l_g and mu only.
+    model_fit: bool = True
 
 
 @dataclass(frozen=True)
@@ -220,12 +225,12 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
         raise where.error("rig", rig_ref or str(rig_path), f"is a {rig.kind} rig; the "
                           f"protocol needs a {protocol.rig} rig")
     raw_analysis = dict(table.get("analysis") or {})
-    for key in ("anisotropic", "fit_geometry"):
+    for key in ("anisotropic", "fit_geometry", "model_fit"):
         if isinstance(raw_analysis.get(key), bool):
             raw_analysis[key] = "true" if raw_analysis[key] else "false"
     a = read_table(raw_analysis, _ANALYSIS, Where("analysis", source))
     analysis = Analysis(int(a["terms"]), a["unloading"], a["anisotropic"] == "true",
-                        a["fit_geometry"] == "true")
+                        a["fit_geometry"] == "true", a["model_fit"] == "true")
     if analysis.unloading == "truth" and rig.kind != "shear":
         raise ConfigError("[analysis] unloading", "truth", "a shear rig's option", source)
 
@@ -258,6 +263,9 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
         targets[key] = (index, fname)
 
     replicates, first_seed = int(numbers["replicates"]), int(numbers["first_seed"])
+    # only the options set away from their defaults: a new option leaves the ids as they were
+    changed = {k: v for k, v in dataclasses.asdict(analysis).items()
+               if v != getattr(Analysis(), k)}
     members = []
     truth_keys, param_keys = list(truth_grid), list(param_grid)
     combos = itertools.product(itertools.product(*truth_grid.values()),
@@ -273,7 +281,7 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
             index, fname = targets[key]
             member_protocol["step"][index][fname] = value
         payload = {"protocol": ref, "rig": member_rig, "steps": member_protocol["step"],
-                   "analysis": analysis.__dict__, "seed": seed}
+                   "analysis": changed, "seed": seed}
         members.append(MemberSpec(n, _member_id(payload), seed, truth, params, member_rig,
                                   ref, member_protocol, analysis))
     return CampaignSpec(str(name), source, ref, rig.kind, replicates, first_seed, analysis,

@@ -94,3 +94,15 @@ def test_a_script_protocol_is_refused_for_now(tmp_path, capsys):
     assert main(["campaign", str(path)]) == 2
     err = capsys.readouterr().err
     assert "scripts as campaign protocols: not yet" in err and len(err.splitlines()) == 1
+
+
+def test_analysis_options_left_at_their_defaults_do_not_change_the_ids(tmp_path):
+    spec = load_campaign(tiny.write(tmp_path, tiny.COMPRESSION))
+    table = copy.deepcopy(spec.table)
+    table["analysis"] = {"terms": 1, "model_fit": True}
+    same = parse_campaign(table, "c.toml")
+    assert [m.member_id for m in same.members] == [m.member_id for m in spec.members]
+    table["analysis"] = {"model_fit": False}
+    other = parse_campaign(table, "c.toml")
+    assert other.members[0].analysis.model_fit is False
+    assert other.members[0].member_id != spec.members[0].member_id
