@@ -49,13 +49,16 @@ def serial(batch: list[MemberSpec]) -> float:
     return time.perf_counter() - t0
 
 
-def dask(batch: list[MemberSpec], workers: int) -> tuple[float, float]:
-    """(members' wall s, startup s) on a LocalCluster of ``workers`` processes."""
+def dask(batch: list[MemberSpec], workers: int) -> tuple[float, float, float]:
+    """(members' wall s, startup s, sum of the members' own wall s) on a LocalCluster of
+    ``workers`` processes."""
+    records: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
-        stats = run_members(batch, ResultStore(Path(tmp)), workers=workers, progress=False)
+        stats = run_members(batch, ResultStore(Path(tmp)), workers=workers, progress=False,
+                            on_record=records.append)
     if stats.failed:
         raise SystemExit(f"{stats.failed} member(s) failed")
-    return stats.wall_s - stats.startup_s, stats.startup_s
+    return stats.wall_s - stats.startup_s, stats.startup_s, sum(r["wall_s"] for r in records)
 
 
 def main() -> None:
@@ -65,14 +68,15 @@ def main() -> None:
     args = parser.parse_args()
     n = args.members
     run_member(members(1, 10_000)[0])  # warm this process
-    base, one, two, start1, start2 = [], [], [], [], []
+    base, one, two, start1, start2, own1 = [], [], [], [], [], []
     for r in range(args.repeats):
         batch = members(n, 1 + r * n)  # fresh seeds: nothing is skipped
         base.append(serial(batch))
-        wall, start = dask(batch, 1)
+        wall, start, own = dask(batch, 1)
         one.append(wall)
         start1.append(start)
-        wall, start = dask(batch, 2)
+        own1.append(own)
+        wall, start, _ = dask(batch, 2)
         two.append(wall)
         start2.append(start)
     b, w1, w2 = (statistics.median(x) for x in (base, one, two))
@@ -86,8 +90,11 @@ def main() -> None:
           f"(ratio to the baseline {rate['2'] / rate['base']:.2f}); "
           f"cluster start {statistics.median(start2):.2f} s")
     print(f"scaling efficiency 1 -> 2 workers: {rate['2'] / (2 * rate['1']) * 100:.0f} %")
+    o1 = statistics.median(own1)
     print(f"Dask overhead per member (1 worker against one process): "
-          f"{(w1 - b) / n * 1e3:+.0f} ms ({(w1 - b) / b * 100:+.1f} %)")
+          f"{(w1 - b) / n * 1e3:+.0f} ms ({(w1 - b) / b * 100:+.1f} %); of which the members "
+          f"ran {(o1 - b) / n * 1e3:+.0f} ms slower in the worker process and "
+          f"{(w1 - o1) / n * 1e3:.0f} ms went to scheduling, transfer and storing")
 
 
 if __name__ == "__main__":

@@ -53,6 +53,7 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
                 ) -> Iterator[Any]:
     """A connected ``distributed.Client``: to ``scheduler``, or to a new LocalCluster of
     ``workers`` single-threaded workers (processes unless ``processes=False``)."""
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler:
@@ -67,9 +68,13 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
         return
     # The scheduler's HTTP server starts even without a dashboard, on 8787 by default: a free
     # port instead, so that two campaigns (or a campaign and a test) can run side by side.
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address="127.0.0.1:0",
-                           silence_logs=logging.ERROR)
+    # The workers' statistical profiler samples every thread's stack each 10 ms: a member is
+    # pure Python for the most part, and pays for it (ADR 0190). The Nanny hands the setting
+    # on to the worker processes.
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address="127.0.0.1:0",
+                               silence_logs=logging.CRITICAL)
     with cluster, Client(cluster) as client:
         yield client
 
