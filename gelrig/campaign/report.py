@@ -197,8 +197,9 @@ def _coverage_figure(out: Path, groups: dict[str, list[Row]], names: list[str]) 
             frac = np.array([c.fraction for c in covs]) * 100
             bands = np.array([c.band() for c in covs]) * 100
             ax.bar(x, frac, width, label=f"V{i}")
-            ax.errorbar(x, frac, yerr=[frac - bands[:, 0], bands[:, 1] - frac], fmt="none",
-                        ecolor="k", lw=0.8)
+            below = np.clip(frac - bands[:, 0], 0.0, None)  # rounding at 0 % and 100 %
+            above = np.clip(bands[:, 1] - frac, 0.0, None)
+            ax.errorbar(x, frac, yerr=[below, above], fmt="none", ecolor="k", lw=0.8)
         ax.axhline(95.0, color="r", ls="--", lw=1, label="95 %")
         ax.set_xticks(range(len(names)), names)
         ax.set_ylim(0, 105)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import logging
 import sys
 from pathlib import Path
 
@@ -69,9 +70,19 @@ def run(args: argparse.Namespace) -> int:
               f"({rate:.1f} members/min), {stats.failed} failed")
     table = store.consolidate(m.member_id for m in members)
     rows = table.to_pylist()
-    page = write_campaign_report(out / "report", f"gelrig campaign: {spec.name}", rows)
     print("\n".join(summary_lines(rows)))
-    print(f"results: {(out / RESULTS).resolve()}\nreport: {page.resolve()}")
+    print(f"results: {(out / RESULTS).resolve()}")
+    try:
+        page = write_campaign_report(out / "report", f"gelrig campaign: {spec.name}", rows)
+    except Exception as exc:  # the results are stored: a report that fails must not hide them
+        if args.debug:
+            raise
+        logging.getLogger(__name__).debug("report failed", exc_info=True)
+        print(f"gelrig: the report could not be written ({type(exc).__name__}: "
+              f"{' '.join(str(exc).split())[:200]}); the results table is complete",
+              file=sys.stderr)
+        return 1
+    print(f"report: {page.resolve()}")
     failed = sum(r.get("status") == "failed" for r in rows)
     if failed:
         print(f"gelrig: warning: {failed} member(s) failed; their errors are in the table "

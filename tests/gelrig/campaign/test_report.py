@@ -79,3 +79,12 @@ def test_z_scores_measure_errors_in_reported_standard_errors():
     rows = [_row(i, 2000 + d, 2000 + d - 3.92 * 5, 2000 + d + 3.92 * 5)  # s.e. 10
             for i, d in enumerate((-20.0, 0.0, 20.0))]
     np.testing.assert_allclose(z_scores(rows, "tau_1"), [-2.0, 0.0, 2.0])
+
+
+def test_a_report_where_every_interval_holds_or_none_does(tmp_path):
+    rows = [_row(i, 2000, 1000, 3000, variant={"v": 1}) for i in range(7)]
+    rows += [_row(10 + i, 2500, 2400, 2600, variant={"v": 2}) for i in range(7)]
+    page = write_campaign_report(tmp_path, "t", rows)
+    table, _ = variant_rows(rows)
+    assert [r["cov.tau_1"] for r in table] == [1.0, 0.0]
+    assert (tmp_path / "coverage.png").exists() and "coverage.png" in page.read_text()
