@@ -40,25 +40,44 @@ def members(n: int, first_seed: int) -> list[MemberSpec]:
     return list(parse_campaign(table, "bench").members)
 
 
-def serial(batch: list[MemberSpec]) -> float:
-    """Wall s of the members run one after the other in this process."""
+def serial(batch: list[MemberSpec]) -> tuple[float, float]:
+    """(wall s, median member wall s) of the members run one after the other here."""
     t0 = time.perf_counter()
+    walls = []
     for m in batch:
-        if run_member(m)["status"] != "ok":
+        record = run_member(m)
+        if record["status"] != "ok":
             raise SystemExit(f"member {m.member_id} failed")
-    return time.perf_counter() - t0
+        walls.append(record["wall_s"])
+    return time.perf_counter() - t0, statistics.median(walls)
 
 
-def dask(batch: list[MemberSpec], workers: int) -> tuple[float, float, float]:
-    """(members' wall s, startup s, sum of the members' own wall s) on a LocalCluster of
-    ``workers`` processes."""
+def pool(batch: list[MemberSpec], processes: int) -> float:
+    """Wall s of the members on a plain process pool (warm): what this machine gives two
+    processes at all, the ceiling for the workers' scaling."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(processes) as executor:
+        list(executor.map(run_member, members(processes, 20_000)))  # warm every process
+        t0 = time.perf_counter()
+        records = list(executor.map(run_member, batch))
+        wall = time.perf_counter() - t0
+    if any(r["status"] != "ok" for r in records):
+        raise SystemExit("a member failed")
+    return wall
+
+
+def dask(batch: list[MemberSpec], workers: int) -> tuple[float, float, float, float]:
+    """(members' wall s, startup s, sum and median of the members' own wall s) on a
+    LocalCluster of ``workers`` processes."""
     records: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         stats = run_members(batch, ResultStore(Path(tmp)), workers=workers, progress=False,
                             on_record=records.append)
     if stats.failed:
         raise SystemExit(f"{stats.failed} member(s) failed")
-    return stats.wall_s - stats.startup_s, stats.startup_s, sum(r["wall_s"] for r in records)
+    walls = [r["wall_s"] for r in records]
+    return stats.wall_s - stats.startup_s, stats.startup_s, sum(walls), statistics.median(walls)
 
 
 def main() -> None:
@@ -68,17 +87,22 @@ def main() -> None:
     args = parser.parse_args()
     n = args.members
     run_member(members(1, 10_000)[0])  # warm this process
-    base, one, two, start1, start2, own1 = [], [], [], [], [], []
+    base, one, two, start1, start2, own1, plain2 = [], [], [], [], [], [], []
+    typical_here, typical_worker = [], []
     for r in range(args.repeats):
         batch = members(n, 1 + r * n)  # fresh seeds: nothing is skipped
-        base.append(serial(batch))
-        wall, start, own = dask(batch, 1)
+        wall, typical = serial(batch)
+        base.append(wall)
+        typical_here.append(typical)
+        wall, start, own, typical = dask(batch, 1)
+        typical_worker.append(typical)
         one.append(wall)
         start1.append(start)
         own1.append(own)
-        wall, start, _ = dask(batch, 2)
+        wall, start, _, _ = dask(batch, 2)
         two.append(wall)
         start2.append(start)
+        plain2.append(pool(batch, 2))
     b, w1, w2 = (statistics.median(x) for x in (base, one, two))
     rate = {k: n / v * 60 for k, v in (("base", b), ("1", w1), ("2", w2))}
     print(f"{n} members (paper compression, 60 s hold at 100 Hz), medians of {args.repeats}")
@@ -89,12 +113,19 @@ def main() -> None:
     print(f"Dask, 2 workers: {w2:.2f} s, {rate['2']:.1f} members/min "
           f"(ratio to the baseline {rate['2'] / rate['base']:.2f}); "
           f"cluster start {statistics.median(start2):.2f} s")
-    print(f"scaling efficiency 1 -> 2 workers: {rate['2'] / (2 * rate['1']) * 100:.0f} %")
+    p2 = statistics.median(plain2)
+    print(f"scaling efficiency 1 -> 2 workers: {rate['2'] / (2 * rate['1']) * 100:.0f} %; "
+          f"a plain pool of 2 processes (warm, no Dask): {n / p2 * 60:.1f} members/min, "
+          f"{n / p2 * 60 / (2 * rate['base']) * 100:.0f} % of twice the baseline (the "
+          f"machine's ceiling); Dask's 2 workers reach {w2 and p2 / w2 * 100:.0f} % of it")
     o1 = statistics.median(own1)
     print(f"Dask overhead per member (1 worker against one process): "
           f"{(w1 - b) / n * 1e3:+.0f} ms ({(w1 - b) / b * 100:+.1f} %); of which the members "
           f"ran {(o1 - b) / n * 1e3:+.0f} ms slower in the worker process and "
           f"{(w1 - o1) / n * 1e3:.0f} ms went to scheduling, transfer and storing")
+    th, tw = statistics.median(typical_here), statistics.median(typical_worker)
+    print(f"a typical member (median): {th * 1e3:.0f} ms in this process, {tw * 1e3:.0f} ms in "
+          f"a worker ({(tw - th) * 1e3:+.0f} ms)")
 
 
 if __name__ == "__main__":

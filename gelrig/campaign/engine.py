@@ -22,6 +22,16 @@ from gelrig.campaign.spec import MemberSpec
 from gelrig.campaign.store import ResultStore
 from instrument.errors import ConfigError
 
+#: A member is mostly Python on a few threads: every wake-up of a worker's housekeeping takes
+#: the GIL from it. The statistical profiler (every 10 ms), the event-loop health tick (20 ms)
+#: and the system monitor (500 ms) are turned off or slowed on the LocalCluster's workers (the
+#: Nanny hands the settings on to the worker processes; ADR 0190).
+QUIET_WORKERS = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.admin.system-monitor.gil.enabled": False,
+}
 #: Wall seconds to wait for a scheduler given with ``--scheduler``.
 CONNECT_TIMEOUT = 10.0
 
@@ -68,10 +78,7 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
         return
     # The scheduler's HTTP server starts even without a dashboard, on 8787 by default: a free
     # port instead, so that two campaigns (or a campaign and a test) can run side by side.
-    # The workers' statistical profiler samples every thread's stack each 10 ms: a member is
-    # pure Python for the most part, and pays for it (ADR 0190). The Nanny hands the setting
-    # on to the worker processes.
-    with dask.config.set({"distributed.worker.profile.enabled": False}):
+    with dask.config.set(QUIET_WORKERS):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                                dashboard_address="127.0.0.1:0",
                                silence_logs=logging.CRITICAL)
