@@ -35,7 +35,7 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def build_parser() -> Parser:
-    from gelrig.commands import analyze, demo, fit, gui, model, run
+    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run
 
     parser = Parser(prog="gelrig", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -47,6 +47,7 @@ def build_parser() -> Parser:
     run.register(sub)
     analyze.register(sub)
     gui.register(sub)
+    campaign.register(sub)
     _register_sim(sub)
     return parser
 

@@ -1,0 +1,296 @@
+"""The campaign file (TOML): a protocol, a rig twin, grids of hidden truth and of protocol
+parameters, and a number of seeded replicates; expanded into members.
+
+Every value is checked on load by the parsers of the rig and protocol files (one configuration
+mechanism, ``instrument.fields``), so an error names the campaign file, the table and field,
+the value as written and what is allowed::
+
+    [campaign]
+    name = "Paper ladder, 50 noise seeds"
+    protocol = "paper:shear"          # a protocol file (relative to this file) or paper:...
+    rig = "my-rig.toml"               # optional; default the built-in rig of the protocol's kind
+    replicates = 50                   # noise seeds first_seed .. first_seed + replicates - 1
+    first_seed = 1
+
+    [analysis]                        # optional: how each member is analysed
+    terms = 1                         # relaxation terms of the shear model fit
+    unloading = "cutoff"              # model fitted: "cutoff", "mdr" or "truth" (the member's)
+    model_fit = true                  # false: l_c, l_g and mu per pass only (no ladder fit)
+
+    [simulator]                       # the rig file's [simulator] keys; a list is a grid
+    mu = [2e-3, 5e-3]
+    relax = [[["20 kPa", "2000 s"]], [["10 kPa", "2000 s"]]]
+
+    [params]                          # "step[i].field" or "<step name>.field"; a list is a grid
+    "step[1].hold" = ["300 s", "3000 s"]
+
+A list-valued field (``relax``, ``speeds``) takes a list of such lists as its grid.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import itertools
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from instrument.errors import ConfigError
+from instrument.fields import Choice, Field, FieldList, Spec, Where, read_table, read_toml
+
+#: Nesting depth of one value of these list-valued [simulator] keys (a list of [G, tau]).
+_SIM_DEPTH = {"relax": 2, "relax_vertical": 2}
+_SIM_RESERVED = ("seed",)
+_HEAD: dict[str, Spec] = {
+    "replicates": Field("replicates", "", 1, 1, 100_000, integer=True),
+    "first_seed": Field("first_seed", "", 1, 0, 2**31 - 100_001, integer=True),
+}
+_ANALYSIS: dict[str, Spec] = {
+    "terms": Field("terms", "", 1, 1, 2, integer=True),
+    "unloading": Choice("unloading", ("cutoff", "mdr", "truth"), "cutoff"),
+    "anisotropic": Choice("anisotropic", ("false", "true"), "false"),
+    "fit_geometry": Choice("fit_geometry", ("true", "false"), "true"),
+    "model_fit": Choice("model_fit", ("true", "false"), "true"),
+}
+#: Protocol references that name a script: wired in with issue 17's scripting API.
+SCRIPT_SUFFIXES = (".py",)
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """How each member's run is analysed (``gelrig analyze``'s options)."""
+
+    terms: int = 1
+    unloading: str = "cutoff"
+    anisotropic: bool = False
+    fit_geometry: bool = True
+    #: The ladder-wide model fit (shear); without it a member measures l_c, l_g and mu only.
+    model_fit: bool = True
+
+
+@dataclass(frozen=True)
+class MemberSpec:
+    """One member: what it runs, on which truth, with which protocol parameters and seed.
+
+    ``truth`` and ``params`` hold the values as written (TOML values) for the keys varied or
+    fixed by the campaign; ``rig_table`` and ``protocol_table`` are the full tables with them
+    applied, ready for the rig and protocol parsers on a worker.
+    """
+
+    index: int
+    member_id: str
+    seed: int
+    truth: dict[str, Any]
+    params: dict[str, Any]
+    rig_table: dict[str, Any]
+    protocol_ref: str
+    protocol_table: dict[str, Any] | None
+    analysis: Analysis
+    keep_dir: str | None = None
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """A validated campaign file, with its members expanded."""
+
+    name: str
+    source: str
+    protocol_ref: str
+    rig_kind: str
+    replicates: int
+    first_seed: int
+    analysis: Analysis
+    truth_grid: dict[str, list[Any]]
+    param_grid: dict[str, list[Any]]
+    members: tuple[MemberSpec, ...] = field(default=())
+    table: dict[str, Any] = field(default_factory=dict)
+
+
+def _depth(value: object) -> int:
+    """How deeply lists nest along the first elements of ``value``."""
+    depth = 0
+    while isinstance(value, list):
+        if not value:
+            return depth + 1
+        depth, value = depth + 1, value[0]
+    return depth
+
+
+def _grid(key: str, raw: object, single_depth: int, where: Where) -> list[Any]:
+    """The values of one grid axis: ``raw`` itself, or its items when it is a list of values."""
+    depth = _depth(raw)
+    if depth == single_depth:
+        return [raw]
+    if depth == single_depth + 1 and isinstance(raw, list):
+        if not raw:
+            raise where.error(key, raw, "a value or a non-empty list of values (a grid)")
+        return list(raw)
+    shape = {0: "a value", 1: "a list", 2: "a list of [G, tau] pairs"}.get(single_depth, "")
+    raise where.error(key, raw, f"{shape} or a list of such values (a grid)")
+
+
+def resolve_protocol_path(ref: str, base: Path, source: str) -> Path:
+    """A protocol reference as a file: ``paper:NAME`` or a path relative to the campaign
+    file. A script (``*.py``) is not a protocol file yet (issue 17)."""
+    from protocols.spec import paper_protocol
+
+    if ref.startswith("paper:"):
+        try:
+            return paper_protocol(ref.split(":", 1)[1])
+        except ConfigError:
+            raise ConfigError("[campaign] protocol", ref,
+                              "allowed: a protocol file, paper:compression or paper:shear",
+                              source) from None
+    if ref.endswith(SCRIPT_SUFFIXES):
+        raise ConfigError("[campaign] protocol", ref, "scripts as campaign protocols: not yet "
+                          "(give a protocol file or paper:compression / paper:shear)", source)
+    path = Path(ref) if Path(ref).is_absolute() else base / ref
+    if not path.is_file():
+        raise ConfigError("[campaign] protocol", ref, "no such protocol file (paths are "
+                          "relative to the campaign file)", source)
+    return path
+
+
+def _param_target(key: str, protocol: Any, where: Where) -> tuple[int, str, Any]:
+    """(step index, TOML field, spec) of a ``[params]`` key ``step[i].field`` or
+    ``<step name>.field``."""
+    head, dot, name = key.rpartition(".")
+    steps = protocol.steps
+    index: int | None = None
+    if dot and head.startswith("step[") and head.endswith("]") and head[5:-1].isdigit():
+        index = int(head[5:-1])
+    elif dot:
+        index = next((i for i, s in enumerate(steps) if s.name == head), None)
+    names = ", ".join(f"step[{i}] ({s.name})" for i, s in enumerate(steps))
+    if index is None or not 0 <= index < len(steps):
+        raise where.error(key, "?", f"name a step and a field as step[i].field or "
+                          f"'<step name>.field'; steps: {names}")
+    specs = {s.key: s for s in steps[index].definition.Params.specs().values()}
+    if name not in specs:
+        raise where.error(key, "?", f"unknown field of step[{index}] ({steps[index].kind}); "
+                          f"allowed: {', '.join(sorted(specs))}")
+    return index, name, specs[name]
+
+
+def _member_id(payload: Mapping[str, Any]) -> str:
+    """A stable id: a hash of the member's canonical description."""
+    import hashlib
+    import json
+
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
+                   base: Path | None = None) -> CampaignSpec:
+    """Validate a campaign given as a TOML table and expand its members."""
+    from protocols.rigfile import default_rig, parse_rig
+    from protocols.spec import load_protocol, parse_protocol
+
+    base = Path(".") if base is None else base
+    allowed = {"campaign", "analysis", "simulator", "params"}
+    for key in table:
+        if key not in allowed:
+            raise ConfigError(f"[{key}]", "?", "unknown table; allowed: [campaign], "
+                              "[analysis], [simulator], [params]", source)
+        if not isinstance(table[key], dict):
+            raise ConfigError(f"[{key}]", table[key], "a table is required here", source)
+    head = dict(table.get("campaign") or {})
+    where = Where("campaign", source)
+    for key in ("protocol",):
+        if not isinstance(head.get(key), str) or not head[key].strip():
+            raise where.error(key, head.get(key, "missing"), "a protocol file, "
+                              "paper:compression or paper:shear")
+    ref = head.pop("protocol")
+    name = head.pop("name", Path(source).stem)
+    if not isinstance(name, str) or not name.strip():
+        raise where.error("name", name, "a non-empty string")
+    rig_ref = head.pop("rig", None)
+    numbers = read_table(head, _HEAD, where)
+    protocol = load_protocol(resolve_protocol_path(ref, base, source))
+    if rig_ref is None:
+        rig_path = default_rig(protocol.rig)
+    else:
+        if not isinstance(rig_ref, str):
+            raise where.error("rig", rig_ref, "a rig file path (relative to this file)")
+        rig_path = Path(rig_ref) if Path(rig_ref).is_absolute() else base / rig_ref
+        if not rig_path.is_file():
+            raise where.error("rig", rig_ref, "no such rig file (paths are relative to the "
+                              "campaign file)")
+    rig_table = read_toml(rig_path, "rig file")
+    rig = parse_rig(rig_table, str(rig_path))
+    if rig.kind != protocol.rig:
+        raise where.error("rig", rig_ref or str(rig_path), f"is a {rig.kind} rig; the "
+                          f"protocol needs a {protocol.rig} rig")
+    raw_analysis = dict(table.get("analysis") or {})
+    for key in ("anisotropic", "fit_geometry", "model_fit"):
+        if isinstance(raw_analysis.get(key), bool):
+            raw_analysis[key] = "true" if raw_analysis[key] else "false"
+    a = read_table(raw_analysis, _ANALYSIS, Where("analysis", source))
+    analysis = Analysis(int(a["terms"]), a["unloading"], a["anisotropic"] == "true",
+                        a["fit_geometry"] == "true", a["model_fit"] == "true")
+    if analysis.unloading == "truth" and rig.kind != "shear":
+        raise ConfigError("[analysis] unloading", "truth", "a shear rig's option", source)
+
+    # [simulator]: every grid value checked by the rig file's own parser
+    sim_where = Where("simulator", source)
+    truth_grid: dict[str, list[Any]] = {}
+    for key, raw in dict(table.get("simulator") or {}).items():
+        if key in _SIM_RESERVED:
+            raise sim_where.error(key, raw, "set by the campaign: [campaign] replicates and "
+                                  "first_seed")
+        values = _grid(key, raw, _SIM_DEPTH.get(key, 0), sim_where)
+        for value in values:
+            trial = copy.deepcopy(rig_table)
+            trial.setdefault("simulator", {})[key] = value
+            parse_rig(trial, source)
+        truth_grid[key] = values
+
+    # [params]: every grid value checked by the protocol file's own parser
+    par_where = Where("params", source)
+    param_grid: dict[str, list[Any]] = {}
+    targets: dict[str, tuple[int, str]] = {}
+    for key, raw in dict(table.get("params") or {}).items():
+        index, fname, spec = _param_target(key, protocol, par_where)
+        values = _grid(key, raw, 1 if isinstance(spec, FieldList) else 0, par_where)
+        for value in values:
+            trial = copy.deepcopy(protocol.table)
+            trial["step"][index][fname] = value
+            parse_protocol(trial, source)
+        param_grid[key] = values
+        targets[key] = (index, fname)
+
+    replicates, first_seed = int(numbers["replicates"]), int(numbers["first_seed"])
+    # only the options set away from their defaults: a new option leaves the ids as they were
+    changed = {k: v for k, v in dataclasses.asdict(analysis).items()
+               if v != getattr(Analysis(), k)}
+    members = []
+    truth_keys, param_keys = list(truth_grid), list(param_grid)
+    combos = itertools.product(itertools.product(*truth_grid.values()),
+                               itertools.product(*param_grid.values()),
+                               range(first_seed, first_seed + replicates))
+    for n, (tvals, pvals, seed) in enumerate(combos):
+        truth = dict(zip(truth_keys, tvals, strict=True))
+        params = dict(zip(param_keys, pvals, strict=True))
+        member_rig = copy.deepcopy(rig_table)
+        member_rig.setdefault("simulator", {}).update(truth, seed=seed)
+        member_protocol = copy.deepcopy(protocol.table)
+        for key, value in params.items():
+            index, fname = targets[key]
+            member_protocol["step"][index][fname] = value
+        payload = {"protocol": ref, "rig": member_rig, "steps": member_protocol["step"],
+                   "analysis": changed, "seed": seed}
+        members.append(MemberSpec(n, _member_id(payload), seed, truth, params, member_rig,
+                                  ref, member_protocol, analysis))
+    return CampaignSpec(str(name), source, ref, rig.kind, replicates, first_seed, analysis,
+                        truth_grid, param_grid, tuple(members), table)
+
+
+def load_campaign(path: str | Path) -> CampaignSpec:
+    """Read and validate a campaign file; paths in it are relative to it."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("CAMPAIGN", str(path), "no such campaign file")
+    return parse_campaign(read_toml(path, "campaign file"), str(path), path.parent)
