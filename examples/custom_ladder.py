@@ -29,14 +29,16 @@ def speed_orders(overlaps: list[str], speeds: list[str], seed: int) -> dict[str,
 
 
 @gelrig.protocol(rig="shear", name="Shear ladder, speeds in a shuffled order")
-def custom_ladder(run: gelrig.Run) -> None:
-    """Find contact, then at each overlap sweep C and AC at the speeds in a shuffled order."""
+def custom_ladder(run: gelrig.Run, overlaps: list[str] = OVERLAPS,
+                  speeds: list[str] = SPEEDS, seed: int = SEED) -> None:
+    """Find contact, then at each overlap sweep C and AC at the speeds in a shuffled order
+    (parameters: ``gelrig run custom_ladder.py --param 'overlaps=["0.78 mm"]'``)."""
     run.step("shear_contact_search", name="contact search", safe_gap="4 mm", coarse="1 mm",
              fine="0.1 mm", rpm=0.5, threshold="0.2 mN*m", sweep="70 mm")
-    for overlap, speeds in speed_orders(OVERLAPS, SPEEDS, SEED).items():
-        run.log(f"overlap {overlap}: speeds {', '.join(speeds)}")
+    for overlap, order in speed_orders(overlaps, speeds, seed).items():
+        run.log(f"overlap {overlap}: speeds {', '.join(order)}")
         run.step("speed_ladder", name=f"overlap {overlap}", overlaps=1, first_overlap=overlap,
-                 speeds=speeds, travel="16 mm", wait="60 s", interval="0.1 s")
+                 speeds=order, travel="16 mm", wait="60 s", interval="0.1 s")
 
 
 if __name__ == "__main__":

@@ -16,14 +16,16 @@ STRAINS = (0.02, 0.04, 0.06)
 
 
 @gelrig.protocol(rig="compression", name="Relaxation series at 2, 4 and 6 % strain")
-def relaxation_series(run: gelrig.Run) -> None:
-    """Contact search, then ramp_hold at each strain with a rest between holds."""
+def relaxation_series(run: gelrig.Run, strains: tuple[float, ...] = STRAINS,
+                      hold: str = "600 s", rest: str = "120 s") -> None:
+    """Contact search, then ramp_hold at each strain with a rest between holds
+    (parameters: ``gelrig run relaxation_series.py --param strains=[0.03,0.05]``)."""
     run.step("compression_contact_search", name="contact search", speed="0.3 mm/s")
-    for i, strain in enumerate(STRAINS):
+    for i, strain in enumerate(strains):
         if i:
-            run.step("rest", name=f"rest {i}", duration="120 s", clear="2 mm")
+            run.step("rest", name=f"rest {i}", duration=rest, clear="2 mm")
         run.step("ramp_hold", name=f"hold at {strain:.0%}", diameter="18.63 mm",
-                 strain=strain, strain_rate="0.002 /s", hold="600 s", rate="100 Hz", terms=1)
+                 strain=strain, strain_rate="0.002 /s", hold=hold, rate="100 Hz", terms=1)
 
 
 if __name__ == "__main__":

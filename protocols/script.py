@@ -19,7 +19,9 @@ results, so a script must ask for the same steps in the same order given the sam
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import inspect
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -57,6 +59,28 @@ class Script:
     description: str = ""
     #: the file the function is defined in (what run.json records, and a resume loads)
     path: str = ""
+    #: keyword arguments the function is called with (``gelrig run --param``, a campaign's
+    #: ``[params]``); the function's defaults stand for the others
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def parameters(self) -> dict[str, Any]:
+        """The function's own parameters (after ``run``) with their defaults (``None`` when it
+        has none)."""
+        signature = inspect.signature(self.function)
+        return {name: (None if p.default is inspect.Parameter.empty else p.default)
+                for name, p in list(signature.parameters.items())[1:]
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+
+    def with_params(self, **values: Any) -> Script:
+        """This script called with ``values`` as keyword arguments (on top of any set
+        before); a name the function does not take is a ConfigError listing those it does."""
+        known = self.parameters()
+        for name in values:
+            if name not in known:
+                raise ConfigError("script parameter", name,
+                                  f"{Path(self.source).name} takes "
+                                  f"{', '.join(known) or 'no parameters'}")
+        return dataclasses.replace(self, params={**self.params, **values})
 
     @property
     def source(self) -> str:
@@ -70,13 +94,14 @@ class Script:
     def table(self) -> dict[str, Any]:
         head: dict[str, Any] = {"name": self.name, "rig": self.rig,
                                 "description": self.description,
-                                "script": self.path, "entry": self.function.__name__}
+                                "script": self.path, "entry": self.function.__name__,
+                                "params": dict(self.params)}
         if self.path and Path(self.path).is_file():
             head["sha256"] = hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
         return {"protocol": head}
 
     def drive(self, sink: StepSink) -> None:
-        self.function(Run(sink, self))
+        self.function(Run(sink, self), **self.params)
 
 
 def protocol(rig: str, name: str | None = None, description: str = "") -> Callable[[Body],
@@ -192,7 +217,12 @@ def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path) -> L
     if head.get("sha256") and digest != head["sha256"]:
         notes.append(f"{path.name} changed since the run started; completed steps replay by "
                      "name and kind")
-    return Loaded(load_script(path, str(head.get("entry") or "") or None), notes)
+    script = load_script(path, str(head.get("entry") or "") or None)
+    params = head.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ConfigError("protocol.params", params, "a table of the script's parameters",
+                          source)
+    return Loaded(script.with_params(**params), notes)
 
 
 def procedure_from_table(table: Mapping[str, Any], source: str,

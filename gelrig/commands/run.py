@@ -57,12 +57,35 @@ def _protocol_args(parser: argparse.ArgumentParser) -> None:
                              "paper:compression / paper:shear")
     parser.add_argument("--rig", default=None, metavar="RIG.toml",
                         help="rig file (default: the built-in simulated rig for the protocol)")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a script's parameter (repeatable): VALUE as in TOML, e.g. "
+                             "--param strains=[0.02,0.04] --param hold='600 s'")
 
 
-def resolve_protocol(name: str) -> Procedure:
-    from protocols.script import load_procedure
+def resolve_protocol(name: str, params: list[str] | None = None) -> Procedure:
+    """The protocol ``name`` names; a script called with ``params`` (``NAME=VALUE``)."""
+    from protocols.script import Script, load_procedure
 
-    return load_procedure(name)
+    procedure = load_procedure(name)
+    if not params:
+        return procedure
+    if not isinstance(procedure, Script):
+        raise ConfigError("--param", params[0], "only scripts (.py) take parameters; a "
+                          "protocol file's are in the file")
+    return procedure.with_params(**dict(_param(text) for text in params))
+
+
+def _param(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` with VALUE read as a TOML value (a bare word stays a string)."""
+    import tomllib
+
+    name, eq, value = text.partition("=")
+    if not eq or not name.strip().isidentifier():
+        raise ConfigError("--param", text, "NAME=VALUE, e.g. hold='600 s' or strain=0.04")
+    try:
+        return name.strip(), tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        return name.strip(), value
 
 
 def resolve_rig(path: str | None, protocol: Procedure) -> RigSpec:
@@ -83,6 +106,9 @@ def print_plan(protocol: Procedure, rig: RigSpec) -> list[str]:
     print(f"Protocol: {protocol.name}  ({protocol.source})")
     print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
     if not isinstance(protocol, ProtocolSpec):
+        given = getattr(protocol, "params", {})
+        if given:
+            print("Params:   " + ", ".join(f"{k} = {v!r}" for k, v in given.items()))
         print("Steps:    decided by the script as it runs; `gelrig plan` rehearses it on the "
               "rig's twin")
         return []
@@ -99,7 +125,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from gelrig.factory import build_twin
     from protocols.rehearsal import rehearse
 
-    protocol = resolve_protocol(args.protocol)
+    protocol = resolve_protocol(args.protocol, args.param)
     rig = resolve_rig(args.rig, protocol)
     failed = print_plan(protocol, rig)
     if failed:
@@ -162,7 +188,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from gelrig.session import LOG_NAME, default_run_dir, execute, keep_script, metadata
     from instrument.store import RunDirectory, check_out_dir
 
-    protocol = resolve_protocol(args.protocol)
+    protocol = resolve_protocol(args.protocol, args.param)
     rig = resolve_rig(args.rig, protocol)
     out = Path(args.out) if args.out else default_run_dir(protocol)
     check_out_dir(out)

@@ -3,7 +3,7 @@
 ``examples/paper_shear.py`` records exactly what ``paper:shear`` records on the same rig and
 seed (the full paper ladder: the pair of runs takes about 20 s). ``examples/custom_ladder.py``
 visits the speeds in its shuffled order, and the analysis still finds l_g at the chord: run on
-a reduced ladder (its OVERLAPS and SPEEDS replaced, the script unchanged) and rehearsed whole.
+a reduced ladder (its overlaps and speeds parameters) and rehearsed whole.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def test_the_paper_shear_script_records_the_same_samples(
 
 #: Two overlaps, the two fastest speeds: the deep end, where the features are sharpest (as in
 #: tests/gelrig/test_paper_shear_features.py's reduced ladder).
-REDUCED = {"OVERLAPS": ["0.68 mm", "0.78 mm"], "SPEEDS": ["1.19e-4 m/s", "2.37e-4 m/s"]}
+REDUCED = {"overlaps": ["0.68 mm", "0.78 mm"], "speeds": ["1.19e-4 m/s", "2.37e-4 m/s"]}
 
 
 @pytest.fixture(scope="module")
@@ -81,12 +81,10 @@ def custom_run(tmp_path_factory: pytest.TempPathFactory
     script = gelrig.load_protocol(EXAMPLES / "custom_ladder.py")
     assert isinstance(script, gelrig.Script)
     module = script.function.__globals__
-    with pytest.MonkeyPatch.context() as patch:
-        for key, value in REDUCED.items():
-            patch.setitem(module, key, value)
-        orders = module["speed_orders"](REDUCED["OVERLAPS"], REDUCED["SPEEDS"], module["SEED"])
-        with gelrig.open_rig("shear") as rig:
-            result = rig.run(script, out=tmp_path_factory.mktemp("custom") / "run")
+    orders = module["speed_orders"](REDUCED["overlaps"], REDUCED["speeds"], module["SEED"])
+    with gelrig.open_rig("shear") as rig:
+        result = rig.run(script.with_params(**REDUCED),
+                         out=tmp_path_factory.mktemp("custom") / "run")
     return result, orders
 
 
@@ -148,7 +146,7 @@ def test_the_whole_custom_ladder_rehearses_in_its_order() -> None:
     assert report.ok, report.reason
     script = gelrig.load_protocol(EXAMPLES / "custom_ladder.py")
     assert isinstance(script, gelrig.Script)
-    overlaps = script.function.__globals__["OVERLAPS"]
+    overlaps = script.parameters()["overlaps"]
     assert [s.name for s in report.steps] == ["contact search", *(
         f"overlap {overlap}" for overlap in overlaps)]
     assert all(s.status == "completed" and s.samples > 0 for s in report.steps)

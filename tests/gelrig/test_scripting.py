@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -80,10 +81,10 @@ import gelrig
 
 
 @gelrig.protocol(rig="compression", name="search and hold")
-def search_and_hold(run):
+def search_and_hold(run, hold="30 s"):
     found = run.step("compression_contact_search", start="3 mm", confirm=1)
     run.log(f"first touch at {found.first_touch_m * 1e3:.4f} mm")
-    run.step("ramp_hold", hold="30 s", strain_rate="0.02 /s", rate="100 Hz", terms=1)
+    run.step("ramp_hold", hold=hold, strain_rate="0.02 /s", rate="100 Hz", terms=1)
 '''
 
 
@@ -197,6 +198,19 @@ def test_gelrig_plan_rehearses_a_script_and_bad_references_are_one_line(
     out = capsys.readouterr().out
     assert "decided by the script as it runs" in out
     assert "1. ramp and hold: completed" in out and "rehearsal passed" in out
+    assert main(["plan", str(script), "--param", "hold='45 s'"]) == 0
+    longer = capsys.readouterr().out
+    assert "Params:   hold = '45 s'" in longer
+
+    def hold_step(text: str) -> float:
+        return float(re.search(r"1\. ramp and hold: completed in ([\d.]+) s", text)[1])
+
+    assert hold_step(longer) - hold_step(out) == pytest.approx(15.0, abs=0.05)
+    assert main(["plan", str(script), "--param", "hld=3"]) == 2
+    assert "[script parameter] hld" not in (err := capsys.readouterr().err) and \
+        "hold.py takes hold" in err
+    assert main(["plan", "paper:compression", "--param", "hold=3"]) == 2
+    assert "only scripts (.py) take parameters" in capsys.readouterr().err
     assert main(["run", str(tmp_path / "nope.py")]) == 2
     assert "no such Python file" in capsys.readouterr().err
     shear = ROOT / "protocols" / "rigs" / "shear.toml"

@@ -314,3 +314,27 @@ def test_a_step_name_with_a_unit_names_a_safe_data_file(tmp_path) -> None:
     step = make_step("ramp_hold", "cycle at 1 um/s ../x", {}, "compression", Where("step[0]"))
     path = RunDirectory(tmp_path).step_path(3, step.name)
     assert path.parent == tmp_path / "steps" and path.name == "03_cycle_at_1_um_s_.._x.h5"
+
+
+def test_script_parameters_are_checked_kept_and_given_back_on_resume(tmp_path) -> None:
+    from protocols.script import script_from_table
+
+    file = tmp_path / "series.py"
+    file.write_text("import gelrig\n\n@gelrig.protocol(rig='compression', name='s')\n"
+                    "def series(run, strains=(0.02,), hold='60 s'):\n"
+                    "    for strain in strains:\n"
+                    "        run.step('ramp_hold', strain=strain, hold=hold, first_touch='6.2 mm',"
+                    " strain_rate='0.02 /s', rate='100 Hz', terms=1)\n")
+    script = load_script(file)
+    assert script.parameters() == {"strains": (0.02,), "hold": "60 s"}
+    with pytest.raises(ConfigError, match=r"series\.py takes strains, hold"):
+        script.with_params(strain=0.1)
+    given = script.with_params(strains=[0.01, 0.03], hold="20 s")
+    assert given.table["protocol"]["params"] == {"strains": [0.01, 0.03], "hold": "20 s"}
+    rig, _, _ = compression_rig()
+    bus = EventBus()
+    seen = events(bus)
+    assert Runner(rig, given, bus).run().value == "completed"
+    assert [e.params["strain"] for e in seen if isinstance(e, StepStarted)] == [0.01, 0.03]
+    again = script_from_table(given.table, str(file), tmp_path).script
+    assert again.params == {"strains": [0.01, 0.03], "hold": "20 s"}
