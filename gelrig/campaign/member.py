@@ -6,7 +6,8 @@ Runs on a Dask worker (or in process): it takes a :class:`~gelrig.campaign.spec.
 fails returns its record with ``status = "failed"`` and the error in one line.
 
 :func:`run_protocol` is the one place a member's protocol runs, chosen by its reference: a
-protocol file (or ``paper:...``) today; scripts (issue 17) get their branch there.
+protocol file (or ``paper:...``), or a script (loaded by path on the worker, called with the
+member's parameters).
 """
 
 from __future__ import annotations
@@ -32,19 +33,25 @@ FITTED = ("G_e", "G_1", "tau_1", "G_2", "tau_2", "mu", "touch_gap", "lower_angle
 
 
 def run_protocol(rig: Any, ref: str, table: dict[str, Any] | None, run_dir: Path,
-                 rig_spec: Any) -> tuple[str, str]:
+                 rig_spec: Any, params: dict[str, Any] | None = None) -> tuple[str, str]:
     """Run the protocol named by ``ref`` on the built ``rig`` into a new run directory
-    ``run_dir``; returns (final state, reason). The seam for other kinds of protocol."""
-    if ref.endswith(SCRIPT_SUFFIXES):
-        raise ConfigError("[campaign] protocol", ref, "scripts as campaign protocols: not yet")
+    ``run_dir``; returns (final state, reason). A script (``ref`` a ``.py`` path) is called
+    with ``params``; a protocol file's parameters are in ``table`` already."""
     from gelrig.session import LOG_NAME, metadata, run_logging
     from instrument.store import RunDirectory
+    from protocols.procedure import Procedure
     from protocols.session import RecordedRun
     from protocols.spec import parse_protocol
 
-    if table is None:
+    protocol: Procedure
+    if ref.endswith(SCRIPT_SUFFIXES):
+        from protocols.script import load_script
+
+        protocol = load_script(ref).with_params(**(params or {}))
+    elif table is None:
         raise ConfigError("[campaign] protocol", ref, "a protocol file's table is needed")
-    protocol = parse_protocol(table, ref)
+    else:
+        protocol = parse_protocol(table, ref)
     run = RunDirectory.create(run_dir, metadata(protocol, rig_spec, "virtual"))
     with run_logging(run.path / LOG_NAME):  # the run's log, not the worker's stderr
         recorded = RecordedRun(rig, protocol).record(run)
@@ -131,6 +138,11 @@ def param_columns(member: MemberSpec) -> dict[str, Any]:
     from protocols.spec import parse_protocol
 
     out: dict[str, Any] = {}
+    if member.params and member.protocol_table is None:  # a script's, as given
+        for key, value in member.params.items():
+            out[f"param.{key}"] = (json.dumps(value) if isinstance(value, list | tuple)
+                                   else value)
+        return out
     if not member.params or member.protocol_table is None:
         return out
     protocol = parse_protocol(member.protocol_table, member.protocol_ref)
@@ -177,7 +189,7 @@ def _run(member: MemberSpec) -> dict[str, Any]:
         rig = build_rig(rig_spec, VirtualClock(), in_process=True)
         try:
             state, reason = run_protocol(rig, member.protocol_ref, member.protocol_table,
-                                         run_dir, rig_spec)
+                                         run_dir, rig_spec, member.params)
         finally:
             bounded(rig.close, 10.0, "closing the rig")
         out["state"] = state

@@ -7,7 +7,8 @@ the value as written and what is allowed::
 
     [campaign]
     name = "Paper ladder, 50 noise seeds"
-    protocol = "paper:shear"          # a protocol file (relative to this file) or paper:...
+    protocol = "paper:shear"          # a protocol file or script (relative to this file),
+                                      # or paper:...
     rig = "my-rig.toml"               # optional; default the built-in rig of the protocol's kind
     replicates = 50                   # noise seeds first_seed .. first_seed + replicates - 1
     first_seed = 1
@@ -24,7 +25,10 @@ the value as written and what is allowed::
     [params]                          # "step[i].field" or "<step name>.field"; a list is a grid
     "step[1].hold" = ["300 s", "3000 s"]
 
-A list-valued field (``relax``, ``speeds``) takes a list of such lists as its grid.
+A list-valued field (``relax``, ``speeds``) takes a list of such lists as its grid. A script's
+``[params]`` are its function's keyword parameters by name (``hold = ["300 s", "3000 s"]``):
+its steps are known only as it runs. The script is loaded by path on each worker (a remote
+cluster's workers need it at the same path).
 """
 
 from __future__ import annotations
@@ -54,7 +58,7 @@ _ANALYSIS: dict[str, Spec] = {
     "fit_geometry": Choice("fit_geometry", ("true", "false"), "true"),
     "model_fit": Choice("model_fit", ("true", "false"), "true"),
 }
-#: Protocol references that name a script: wired in with issue 17's scripting API.
+#: Protocol references that name a script (``protocols.script``).
 SCRIPT_SUFFIXES = (".py",)
 
 
@@ -132,8 +136,8 @@ def _grid(key: str, raw: object, single_depth: int, where: Where) -> list[Any]:
 
 
 def resolve_protocol_path(ref: str, base: Path, source: str) -> Path:
-    """A protocol reference as a file: ``paper:NAME`` or a path relative to the campaign
-    file. A script (``*.py``) is not a protocol file yet (issue 17)."""
+    """A protocol reference as a file: ``paper:NAME`` or a path (a protocol file or a script)
+    relative to the campaign file."""
     from protocols.spec import paper_protocol
 
     if ref.startswith("paper:"):
@@ -143,9 +147,6 @@ def resolve_protocol_path(ref: str, base: Path, source: str) -> Path:
             raise ConfigError("[campaign] protocol", ref,
                               "allowed: a protocol file, paper:compression or paper:shear",
                               source) from None
-    if ref.endswith(SCRIPT_SUFFIXES):
-        raise ConfigError("[campaign] protocol", ref, "scripts as campaign protocols: not yet "
-                          "(give a protocol file or paper:compression / paper:shear)", source)
     path = Path(ref) if Path(ref).is_absolute() else base / ref
     if not path.is_file():
         raise ConfigError("[campaign] protocol", ref, "no such protocol file (paths are "
@@ -187,6 +188,7 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
                    base: Path | None = None) -> CampaignSpec:
     """Validate a campaign given as a TOML table and expand its members."""
     from protocols.rigfile import default_rig, parse_rig
+    from protocols.script import load_script
     from protocols.spec import load_protocol, parse_protocol
 
     base = Path(".") if base is None else base
@@ -209,7 +211,9 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
         raise where.error("name", name, "a non-empty string")
     rig_ref = head.pop("rig", None)
     numbers = read_table(head, _HEAD, where)
-    protocol = load_protocol(resolve_protocol_path(ref, base, source))
+    protocol_path = resolve_protocol_path(ref, base, source)
+    script = load_script(protocol_path) if ref.endswith(SCRIPT_SUFFIXES) else None
+    protocol = script if script is not None else load_protocol(protocol_path)
     if rig_ref is None:
         rig_path = default_rig(protocol.rig)
     else:
@@ -253,6 +257,13 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
     param_grid: dict[str, list[Any]] = {}
     targets: dict[str, tuple[int, str]] = {}
     for key, raw in dict(table.get("params") or {}).items():
+        if script is not None:  # a script's parameters: its function's, by name
+            param_grid[key] = _grid(key, raw, _depth(script.parameters().get(key)), par_where)
+            try:
+                script.with_params(**{key: param_grid[key][0]})
+            except ConfigError as exc:
+                raise par_where.error(key, "?", exc.allowed) from None
+            continue
         index, fname, spec = _param_target(key, protocol, par_where)
         values = _grid(key, raw, 1 if isinstance(spec, FieldList) else 0, par_where)
         for value in values:
@@ -276,6 +287,12 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
         params = dict(zip(param_keys, pvals, strict=True))
         member_rig = copy.deepcopy(rig_table)
         member_rig.setdefault("simulator", {}).update(truth, seed=seed)
+        if script is not None:
+            payload = {"protocol": ref, "script": script.table["protocol"].get("sha256"),
+                       "rig": member_rig, "params": params, "analysis": changed, "seed": seed}
+            members.append(MemberSpec(n, _member_id(payload), seed, truth, params, member_rig,
+                                      str(protocol_path.resolve()), None, analysis))
+            continue
         member_protocol = copy.deepcopy(protocol.table)
         for key, value in params.items():
             index, fname = targets[key]

@@ -59,7 +59,7 @@ def test_a_list_field_takes_a_list_of_lists_as_its_grid(tmp_path):
     ({"params": {"step[1].colour": 1}}, "unknown field of step[1]"),
     ({"params": {"step[1].hold": []}}, "a non-empty list"),
     ({"campaign": {"protocol": "paper:nope"}}, "[campaign] protocol = \"paper:nope\""),
-    ({"campaign": {"protocol": "study.py"}}, "scripts as campaign protocols: not yet"),
+    ({"campaign": {"protocol": "study.py"}}, "[campaign] protocol = \"study.py\": no such"),
     ({"campaign": {"replicates": 0}}, "[campaign] replicates = 0: allowed"),
     ({"analysis": {"unloading": "glue"}}, "[analysis] unloading = \"glue\": allowed"),
     ({"extra": {}}, "[extra]"),
@@ -88,12 +88,38 @@ def test_the_cli_reports_a_bad_campaign_in_one_line_with_exit_2(tmp_path, capsys
         assert "--workers" in capsys.readouterr().err
 
 
-def test_a_script_protocol_is_refused_for_now(tmp_path, capsys):
+SCRIPT = """
+import gelrig
+
+
+@gelrig.protocol(rig="compression", name="short hold")
+def short_hold(run, hold="60 s", strain=0.06):
+    run.step("compression_contact_search", start="3 mm", confirm=1)
+    run.step("ramp_hold", hold=hold, strain=strain, rate="100 Hz", terms=1)
+"""
+
+
+def test_a_script_protocol_takes_its_parameters_by_name(tmp_path, capsys):
+    from gelrig.campaign.member import run_member
+
+    (tmp_path / "study.py").write_text(SCRIPT)
     path = tmp_path / "c.toml"
-    path.write_text('[campaign]\nprotocol = "study.py"\n')
+    path.write_text('[campaign]\nprotocol = "study.py"\nreplicates = 1\n\n'
+                    '[params]\nhold = ["20 s", "40 s"]\nstrain = 0.04\n')
+    spec = load_campaign(path)
+    assert [m.params for m in spec.members] == [{"hold": "20 s", "strain": 0.04},
+                                                {"hold": "40 s", "strain": 0.04}]
+    assert len({m.member_id for m in spec.members}) == 2
+    rows = [run_member(m) for m in spec.members]
+    assert [r["status"] for r in rows] == ["ok", "ok"], [r["error"] for r in rows]
+    assert [r["param.hold"] for r in rows] == ["20 s", "40 s"]
+    assert [round(r["held_s"]) for r in rows] == [20, 40]
+    assert all(r["lo.G_e"] < r["fit.G_e"] < r["hi.G_e"] for r in rows)
+    path.write_text('[campaign]\nprotocol = "study.py"\n\n[params]\nhld = "20 s"\n')
     assert main(["campaign", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "scripts as campaign protocols: not yet" in err and len(err.splitlines()) == 1
+    assert "[params] hld" in err and "study.py takes hold, strain" in err
+    assert len(err.splitlines()) == 1
 
 
 def test_analysis_options_left_at_their_defaults_do_not_change_the_ids(tmp_path):
