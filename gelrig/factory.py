@@ -98,7 +98,8 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
                 touch_gap=truth.touch_gap, seed=int(truth.seed), arm=entry.config.arm,
                 material=truth.material or PAPER_MATERIAL,
                 material_vertical=truth.material_vertical, unloading=truth.unloading,
-                carry_history=truth.carry_history))
+                carry_history=truth.carry_history, torque_noise=truth.torque_noise,
+                normal_force_noise=truth.normal_force_noise))
             if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"

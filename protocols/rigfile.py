@@ -145,6 +145,10 @@ class ShearTruth(Config):
     unloading: str = param(Choice("unloading", UNLOADING_MODELS, "cutoff",
                                   help="normal contact on unloading: the paper's cutoff, or "
                                        "MDR (physics.md 1b)"))
+    torque_noise: float = param(Field("torque_noise", "N*m", 1e-7, 0.0, 1e-3,
+                                      help="torque noise (standard deviation)"))
+    normal_force_noise: float = param(Field("normal_force_noise", "N", 2e-5, 0.0, 0.1,
+                                            help="normal force noise (standard deviation)"))
     material: Material | None = None
     #: ``relax_vertical``: the material F_v is computed with (the paper's anisotropy).
     material_vertical: Material | None = None

@@ -85,6 +85,8 @@ def truth_columns(rig_spec: Any) -> dict[str, Any]:
     if isinstance(rig_spec, ShearRigSpec):
         material = sim.material or PAPER_MATERIAL
         out.update({"truth.mu": sim.mu, "truth.touch_gap": sim.touch_gap,
+                    "truth.torque_noise": sim.torque_noise,
+                    "truth.normal_force_noise": sim.normal_force_noise,
                     "truth.lower_angle": sim.lower_angle, "truth.r1": sim.r1,
                     "truth.r2": sim.r2, "truth.unloading": sim.unloading})
     else:

@@ -43,3 +43,22 @@ def test_options_are_read():
 def test_bad_options_are_one_line(simulator, message):
     with pytest.raises(ConfigError, match=message):
         shear(**simulator)
+
+
+def test_the_noise_of_torque_and_normal_force_reaches_the_wire(make_rig):
+    """[simulator] torque_noise / normal_force_noise: the spread of readings at rest through
+    the driver (the campaign's noise axis on the shear rig)."""
+    import numpy as np
+
+    assert shear().torque_noise == pytest.approx(1e-7)
+    spreads = {}
+    for level in (1e-7, 2e-5):
+        rig = make_rig("shear", simulator={"torque_noise": level,
+                                            "normal_force_noise": level * 200})
+        rig.rheometer.zero_gap()
+        torque = [rig.rheometer.torque() for _ in range(60)]
+        normal = [rig.rheometer.normal_force() for _ in range(60)]
+        spreads[level] = (float(np.std(torque)), float(np.std(normal)))
+    assert spreads[2e-5][0] == pytest.approx(2e-5, rel=0.35)
+    assert spreads[2e-5][0] > 20 * spreads[1e-7][0]
+    assert spreads[2e-5][1] == pytest.approx(4e-3, rel=0.35)
