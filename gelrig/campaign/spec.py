@@ -25,7 +25,11 @@ the value as written and what is allowed::
     [params]                          # "step[i].field" or "<step name>.field"; a list is a grid
     "step[1].hold" = ["300 s", "3000 s"]
 
-A list-valued field (``relax``, ``speeds``) takes a list of such lists as its grid. A script's
+A list-valued field (``relax``, ``speeds``) takes a list of such lists as its grid. A
+``[simulator]`` value (or any number inside one, such as a relaxation term's G) may instead be
+a distribution, drawn anew for each member from its seed: ``{ uniform = ["4 kPa", "9 kPa"] }``,
+``{ loguniform = [1e-3, 1e-2] }`` or ``{ normal = ["5e-3", "1e-3"] }`` (mean, standard
+deviation), both ends in the same unit. A script's
 ``[params]`` are its function's keyword parameters by name (``hold = ["300 s", "3000 s"]``):
 its steps are known only as it runs. The script is loaded by path on each worker (a remote
 cluster's workers need it at the same path).
@@ -36,6 +40,9 @@ from __future__ import annotations
 import copy
 import dataclasses
 import itertools
+import math
+import re
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,6 +140,72 @@ def _grid(key: str, raw: object, single_depth: int, where: Where) -> list[Any]:
         return list(raw)
     shape = {0: "a value", 1: "a list", 2: "a list of [G, tau] pairs"}.get(single_depth, "")
     raise where.error(key, raw, f"{shape} or a list of such values (a grid)")
+
+
+#: Distributions a [simulator] value may be drawn from, with what their two numbers are.
+DISTRIBUTIONS = {"uniform": "[low, high]", "loguniform": "[low, high], both > 0",
+                 "normal": "[mean, standard deviation]"}
+_NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+def _has_draw(value: object) -> bool:
+    """Whether ``value`` is, or holds, a distribution table."""
+    if isinstance(value, dict):
+        return True
+    return isinstance(value, list) and any(_has_draw(v) for v in value)
+
+
+def _number(raw: object, key: str, where: Where) -> tuple[float, str]:
+    """A distribution's number and the unit it was written in ('' for a bare number)."""
+    if isinstance(raw, int | float) and not isinstance(raw, bool):
+        return float(raw), ""
+    match = _NUMBER.match(raw) if isinstance(raw, str) else None
+    if match is None:
+        raise where.error(key, raw, "a number, or a number with a unit (\"4 kPa\")")
+    return float(match[1]), match[2]
+
+
+def _check_draw(spec: dict[str, Any], key: str, where: Where) -> None:
+    """One distribution table: its name, two numbers in one unit, a valid spread."""
+    if len(spec) != 1 or next(iter(spec)) not in DISTRIBUTIONS:
+        raise where.error(key, spec, "one of " + ", ".join(
+            f"{{ {name} = {what} }}" for name, what in DISTRIBUTIONS.items()))
+    (name, pair), = spec.items()
+    if not isinstance(pair, list) or len(pair) != 2:
+        raise where.error(key, pair, f"{name} takes two numbers: {DISTRIBUTIONS[name]}")
+    (a, unit_a), (b, unit_b) = (_number(v, key, where) for v in pair)
+    if unit_a != unit_b:
+        raise where.error(key, pair, f"both numbers of {name} in one unit")
+    ok = {"uniform": a < b, "loguniform": 0 < a < b, "normal": b > 0}[name]
+    if not ok:
+        raise where.error(key, pair, f"{name} takes {DISTRIBUTIONS[name]}"
+                          + (" with low < high" if name != "normal" else ", sd > 0"))
+
+
+def _draw(value: Any, rng: Any, key: str, where: Where) -> Any:
+    """``value`` with every distribution table replaced by one draw (in the unit written)."""
+    if isinstance(value, list):
+        return [_draw(v, rng, key, where) for v in value]
+    if not isinstance(value, dict):
+        return value
+    _check_draw(value, key, where)
+    (name, pair), = value.items()
+    (a, unit), (b, _) = (_number(v, key, where) for v in pair)
+    if name == "uniform":
+        x = float(rng.uniform(a, b))
+    elif name == "loguniform":
+        x = float(math.exp(rng.uniform(math.log(a), math.log(b))))
+    else:
+        x = float(rng.normal(a, b))
+    return f"{x!r} {unit}" if unit else x
+
+
+def _rng(seed: int, key: str) -> Any:
+    """The generator of ``key``'s draws for a member of ``seed``: the same seed draws the same
+    truth in every variant (common random numbers across the grid)."""
+    import numpy as np
+
+    return np.random.default_rng([seed, zlib.crc32(key.encode())])
 
 
 def resolve_protocol_path(ref: str, base: Path, source: str) -> Path:
@@ -241,10 +314,17 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
     # [simulator]: every grid value checked by the rig file's own parser
     sim_where = Where("simulator", source)
     truth_grid: dict[str, list[Any]] = {}
+    draws: dict[str, Any] = {}
     for key, raw in dict(table.get("simulator") or {}).items():
         if key in _SIM_RESERVED:
             raise sim_where.error(key, raw, "set by the campaign: [campaign] replicates and "
                                   "first_seed")
+        if _has_draw(raw):  # drawn per member from its seed; checked with a first draw
+            trial = copy.deepcopy(rig_table)
+            trial.setdefault("simulator", {})[key] = _draw(raw, _rng(0, key), key, sim_where)
+            parse_rig(trial, source)
+            draws[key] = raw
+            continue
         values = _grid(key, raw, _SIM_DEPTH.get(key, 0), sim_where)
         for value in values:
             trial = copy.deepcopy(rig_table)
@@ -287,6 +367,14 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
         params = dict(zip(param_keys, pvals, strict=True))
         member_rig = copy.deepcopy(rig_table)
         member_rig.setdefault("simulator", {}).update(truth, seed=seed)
+        for key, raw in draws.items():  # the truth column holds the draw; the variant, raw
+            member_rig["simulator"][key] = drawn = _draw(raw, _rng(seed, key), key, sim_where)
+            try:
+                parse_rig(member_rig, source)
+            except ConfigError as exc:
+                raise sim_where.error(key, drawn, f"drawn for seed {seed} from {raw}, but "
+                                      f"{exc.allowed}; narrow the distribution") from None
+        truth = {**truth, **draws}
         if script is not None:
             payload = {"protocol": ref, "script": script.table["protocol"].get("sha256"),
                        "rig": member_rig, "params": params, "analysis": changed, "seed": seed}

@@ -132,3 +132,44 @@ def test_analysis_options_left_at_their_defaults_do_not_change_the_ids(tmp_path)
     other = parse_campaign(table, "c.toml")
     assert other.members[0].analysis.model_fit is False
     assert other.members[0].member_id != spec.members[0].member_id
+
+
+def test_a_truth_drawn_from_a_distribution_per_member(tmp_path):
+    from gelrig.campaign.member import run_member
+    from protocols.rigfile import parse_rig
+
+    path = tiny.write(tmp_path, tiny.COMPRESSION, replicates=4,
+                      simulator='g_e = { uniform = ["6 kPa", "8 kPa"] }\n'
+                                'relax = [[{ loguniform = ["300 Pa", "900 Pa"] }, "1413 s"]]\n'
+                                'noise = ["0.2 mN", "0.4 mN"]')
+    spec = load_campaign(path)
+    assert len(spec.members) == 8
+    drawn = [parse_rig(m.rig_table, "m").simulator.material for m in spec.members]
+    g_e = [mat.g_e for mat in drawn]
+    g_1 = [mat.relax[0].g for mat in drawn]
+    assert all(6000 <= g <= 8000 for g in g_e) and all(300 <= g <= 900 for g in g_1)
+    assert len(set(g_e[:4])) == 4  # a new draw for each seed...
+    assert g_e[:4] == g_e[4:]  # ...and the same draws in each noise variant (same seeds)
+    assert [m.member_id for m in load_campaign(path).members] == \
+        [m.member_id for m in spec.members]  # drawn from the seeds: the same every time
+    assert len({m.truth["g_e"] == {"uniform": ["6 kPa", "8 kPa"]} for m in spec.members}) == 1
+    row = run_member(spec.members[0])
+    assert row["status"] == "ok", row["error"]
+    assert (row["truth.G_e"], row["truth.G_1"]) == pytest.approx((g_e[0], g_1[0]))
+    # a 60 s hold pins the instantaneous modulus, not its split into G_e and G_1
+    assert row["fit.G_e"] + row["fit.G_1"] == pytest.approx(g_e[0] + g_1[0], rel=0.02)
+
+
+@pytest.mark.parametrize(("value", "expected"), [
+    ('{ uniform = ["8 kPa", "6 kPa"] }', "with low < high"),
+    ('{ gauss = [1, 2] }', "one of { uniform = [low, high] }"),
+    ('{ uniform = ["6 kPa", "8000 Pa"] }', "both numbers of uniform in one unit"),
+    ('{ normal = ["7 kPa", "0 kPa"] }', "sd > 0"),
+    ('{ normal = ["7 kPa", "20 kPa"] }', "narrow the distribution"),
+])
+def test_a_bad_distribution_is_one_line(tmp_path, value, expected):
+    path = tiny.write(tmp_path, tiny.COMPRESSION, replicates=20, simulator=f"g_e = {value}")
+    with pytest.raises(ConfigError) as info:
+        load_campaign(path)
+    message = str(info.value)
+    assert "[simulator] g_e" in message and expected in message and "\n" not in message
