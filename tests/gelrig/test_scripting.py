@@ -140,6 +140,13 @@ def test_a_script_run_trips_an_interlock_within_one_sample(tmp_path: Path) -> No
     force = read_step(result.path / result.steps[1]["file"])["force_N"]
     beyond = np.flatnonzero(force > 0.05)
     assert beyond.size == 1 and beyond[0] == force.size - 1  # recorded up to the first beyond
+    # continued from Python on the rig with its usual 2 N limit: the hold runs, the search
+    # is not run again
+    with gelrig.open_rig("compression") as rig:
+        resumed = rig.resume(result.path)
+    assert resumed.ok, resumed.reason
+    assert resumed.steps[0]["started"] == result.steps[0]["started"]
+    assert resumed.results("ramp and hold")["held_s"] == pytest.approx(30.0, abs=0.01)
 
 
 def test_a_script_runs_from_python_and_its_results_come_back(tmp_path: Path) -> None:
