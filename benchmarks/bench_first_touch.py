@@ -30,8 +30,9 @@ from protocols.spec import parse_protocol
 TOUCH, G_E = 6.2e-3, 7146.0
 
 
-def one_run(folder: Path, seed: int, hold: str) -> tuple[float, float, float, float]:
-    """(search touch, refitted touch, G_e measured overlap, G_e nominal depth) of one seed."""
+def one_run(folder: Path, seed: int, hold: str) -> tuple[float, float, float, float, float]:
+    """(search touch, refitted touch, G_e measured overlap, G_e nominal depth, the refitted
+    touch's reported standard error) of one seed."""
     folder.mkdir(parents=True)
     rig = folder / "rig.toml"
     rig.write_text(re.sub(r"(?m)^seed = \d+", f"seed = {seed}",
@@ -50,8 +51,9 @@ def one_run(folder: Path, seed: int, hold: str) -> tuple[float, float, float, fl
     cols = read_step(run.step_file(step))
     nominal = analyse_hold(cols["t_s"], cols["force_N"], cols["delta_m"], 18.63e-3 / 2,
                            step["results"]["depth_m"], terms=(1,))
+    reported = overlap.touch.stderr if overlap.touch is not None else float("nan")
     return (overlap.recorded_touch, overlap.first_touch, hold_result.fits[0].g_e,
-            nominal.fits[0].g_e)
+            nominal.fits[0].g_e, reported)
 
 
 def describe(label: str, errors: list[float], scale: float, unit: str) -> str:
@@ -69,12 +71,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, args.seeds + 1):
             rows.append(one_run(Path(tmp) / str(seed), seed, args.hold))
-    search, refit, g_meas, g_nom = ([r[i] for r in rows] for i in range(4))
+    search, refit, g_meas, g_nom, stderr = ([r[i] for r in rows] for i in range(5))
     print(f"{args.seeds} runs of the simulated compression rig (seeds 1..{args.seeds}), hold "
           f"{args.hold}; truth: first touch {TOUCH * 1e3} mm, G_e {G_E:g} Pa")
     print("first touch:")
     print(describe("contact search (baseline)", [z - TOUCH for z in search], 1e6, "um"))
     print(describe("refitted on the ramp", [z - TOUCH for z in refit], 1e6, "um"))
+    print(f"  refit's reported standard error: median {statistics.median(stderr) * 1e6:.3f} "
+          f"um; spread / reported: {statistics.stdev(refit) / statistics.median(stderr):.2f}")
     sd_ratio = statistics.stdev(refit) / statistics.stdev(search)
     print(f"  ratio of spreads, refit / search: {sd_ratio:.3f}")
     print("G_e:")

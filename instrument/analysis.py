@@ -331,9 +331,14 @@ def fit_hold(
     nu: float = 0.5,
     terms: int = 1,
     delta: ArrayLike | None = None,
+    overlap_stderr: float = 0.0,
 ) -> RelaxationFit:
     """Find the hold in a ramp-and-hold record (:func:`instrument.hold.find_hold`; a retract
     after it is left out), back-calculate G(t) and fit it.
+
+    ``overlap_stderr`` (m): the standard error of the measured overlap (of the first touch
+    it is measured from), which scales every modulus alike; it is added to the moduli's
+    standard errors (:func:`with_scale_stderr`).
 
     ``depth`` (m) is the held overlap, or the measured overlap at every sample of the record
     (stage position less first touch and the load cell's deflection: the hold fit then uses
@@ -354,9 +359,30 @@ def fit_hold(
     d = np.asarray(depth, dtype=float)
     g = modulus_history(f[start:end], d[start:end] if d.ndim else float(d), radius, nu)
     fit = fit_relaxation(t[start:end] - t0, g, terms=terms, t0=t0)
+    if overlap_stderr > 0:
+        held = float(np.mean(d[start:end])) if d.ndim else float(d)
+        fit = with_scale_stderr(fit, 1.5 * overlap_stderr / held)
     if delta is None:
         return fit
     return with_ramp_correction(fit, t[: start + 1], np.asarray(delta, float)[: start + 1])
+
+
+def with_scale_stderr(fit: RelaxationFit, relative: float) -> RelaxationFit:
+    """``fit`` (and its fits with fewer terms) with a relative uncertainty common to every
+    modulus added in quadrature to G_e's and each G_i's standard error (tau's unchanged):
+    the measured overlap's, ``1.5 sigma_delta / delta`` (G ~ F / delta^1.5). Kept as
+    ``extra["scale_rel_stderr"]``. Called after the terms are resolved, so it changes no
+    decision of the fit, only the intervals it reports (docs/decisions/0160 addendum)."""
+    if not (math.isfinite(relative) and relative > 0):
+        return fit
+    fewer = None if fit.fewer is None else with_scale_stderr(fit.fewer, relative)
+    values = {"G_e": fit.g_e} | {f"G_{k}": term.g for k, term in enumerate(fit.relax, 1)}
+    stderr = dict(fit.stderr)
+    for name, value in values.items():
+        if name in stderr and math.isfinite(stderr[name]):
+            stderr[name] = math.hypot(stderr[name], relative * abs(value))
+    return replace(fit, stderr=stderr, fewer=fewer,
+                   extra={**fit.extra, "scale_rel_stderr": relative})
 
 
 def with_ramp_correction(fit: RelaxationFit, t_load: ArrayLike, delta_load: ArrayLike
@@ -415,6 +441,8 @@ class FirstTouch:
     rmse: float
     n_contact: int
     softening: float = 0.0
+    #: standard error of ``position`` (m) from the fit's covariance; NaN if undetermined
+    stderr: float = math.nan
 
 
 def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool = False
@@ -461,4 +489,21 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool =
     result = least_squares(residual, start, bounds=bounds, x_scale=scale)
     z0, amp, base = (float(v) for v in result.x[:3])
     return FirstTouch(z0, amp, base, float(np.sqrt(np.mean(result.fun**2))),
-                      int(np.count_nonzero(z > z0)), float(result.x[3]) if relaxing else 0.0)
+                      int(np.count_nonzero(z > z0)), float(result.x[3]) if relaxing else 0.0,
+                      _first_stderr(result.jac, result.fun))
+
+
+def _first_stderr(jac: FloatArray, residuals: FloatArray) -> float:
+    """Standard error of the first parameter of a least-squares fit from its Jacobian and
+    residuals (white noise); NaN when the covariance is singular."""
+    n, k = jac.shape
+    norms = np.linalg.norm(jac, axis=0)
+    if n <= k or not np.all(np.isfinite(jac)) or not np.all(norms > 0):
+        return math.nan
+    scaled = jac / norms  # columns of unit length: the conditioning is the fit's, not units'
+    normal = scaled.T @ scaled
+    if np.linalg.cond(normal) > 1e12:
+        return math.nan
+    variance = float(np.sum(residuals**2)) / (n - k)
+    return float(math.sqrt(max(variance * float(np.linalg.inv(normal)[0, 0]), 0.0))
+                 / norms[0])

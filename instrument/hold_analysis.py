@@ -52,6 +52,14 @@ class MeasuredOverlap:
     why: str = ""
 
     @property
+    def stderr(self) -> float:
+        """Standard error (m) of the first touch used, so of the overlap: the ramp refit's;
+        0 when the recorded touch stands in (its uncertainty is not known here)."""
+        if self.touch is None or not math.isfinite(self.touch.stderr):
+            return 0.0
+        return self.touch.stderr
+
+    @property
     def first_touch(self) -> float:
         """The first touch used (m): the ramp's, else the recorded one."""
         return self.touch.position if self.touch is not None else self.recorded_touch
@@ -192,8 +200,9 @@ def analyse_hold(
         if n in by_terms:
             continue
         try:
-            fit: RelaxationFit | None = fit_hold(t_ok, f_ok, radius, held, nu, terms=n,
-                                                 delta=d_ok)
+            fit: RelaxationFit | None = fit_hold(
+                t_ok, f_ok, radius, held, nu, terms=n, delta=d_ok,
+                overlap_stderr=measured.stderr if measured is not None else 0.0)
         except ConfigError as exc:
             errors[n] = str(exc)
             continue

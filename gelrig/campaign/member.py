@@ -114,9 +114,14 @@ def fitted_columns(result: Any) -> dict[str, Any]:
         nan = math.nan
         _estimate(out, "G_e", fit.g_e, se := fit.stderr.get("G_e", nan), fit.g_e - Z95 * se,
                   fit.g_e + Z95 * se)
+        # the material's amplitudes: the hold-start ones corrected for relaxation during the
+        # ramp (what the truth holds); their standard errors scale with them
+        corrected: Any = fit.extra.get("relax_ramp_corrected") or []
         for k, term in enumerate(fit.relax, start=1):
-            for name, value in ((f"G_{k}", term.g), (f"tau_{k}", term.tau)):
-                se = fit.stderr.get(name, nan)
+            g = float(corrected[k - 1]["G"]) if len(corrected) >= k else term.g
+            ratio = g / term.g if term.g else 1.0
+            for name, value, scale in ((f"G_{k}", g, ratio), (f"tau_{k}", term.tau, 1.0)):
+                se = fit.stderr.get(name, nan) * scale
                 _estimate(out, name, value, se, value - Z95 * se, value + Z95 * se)
         out["terms_resolved"] = max(fits[-1].terms_resolved, 0)
         out["held_s"] = float(result.holds[index].duration)

@@ -225,7 +225,8 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         for terms in range(1, int(p.terms) + 1) if ctx.watched else ():
             try:
                 fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
-                               terms=terms, delta=cols["delta_m"])
+                               terms=terms, delta=cols["delta_m"],
+                               overlap_stderr=measured.stderr)
                 fits.append(fit.as_dict())
             except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
                 fits.append({"error": str(exc)})

@@ -88,3 +88,25 @@ def test_a_report_where_every_interval_holds_or_none_does(tmp_path):
     table, _ = variant_rows(rows)
     assert [r["cov.tau_1"] for r in table] == [1.0, 0.0]
     assert (tmp_path / "coverage.png").exists() and "coverage.png" in page.read_text()
+
+
+def test_a_hold_fit_is_compared_by_its_ramp_corrected_amplitudes():
+    """The truth holds the material's G_1; the hold fit's amplitude is the hold start's,
+    smaller by the relaxation during the ramp: the member reports the corrected one, its
+    standard error scaled alike (tau's as fitted)."""
+    from types import SimpleNamespace
+
+    from gelrig.campaign.member import Z95, fitted_columns
+    from instrument.analysis import RelaxationFit, RelaxationTerm
+
+    fit = RelaxationFit(7000.0, (RelaxationTerm(600.0, 1400.0),), 0.0, 1.0,
+                        {"G_e": 2.0, "G_1": 6.0, "tau_1": 30.0}, 1000,
+                        extra={"relax_ramp_corrected": [{"G": 630.0, "tau": 1400.0}]},
+                        terms_resolved=1)
+    result = SimpleNamespace(hold_fits={1: [fit]}, holds={1: SimpleNamespace(duration=600.0)},
+                             model_fits={}, ladders={})
+    out = fitted_columns(result)
+    assert out["fit.G_1"] == 630.0 and out["se.G_1"] == pytest.approx(6.3)
+    assert out["hi.G_1"] == pytest.approx(630.0 + Z95 * 6.3)
+    assert (out["fit.tau_1"], out["se.tau_1"]) == (1400.0, 30.0)
+    assert (out["fit.G_e"], out["se.G_e"]) == (7000.0, 2.0)
