@@ -28,7 +28,7 @@ from typing import Any
 
 from instrument.clock import Clock
 from instrument.errors import ConfigError, InterlockTripped
-from instrument.store import RunDirectory, check_out_dir
+from instrument.store import RunDirectory
 from protocols.control import RunControl
 from protocols.events import Event, EventBus
 from protocols.guard import Guarded, guarded
@@ -79,20 +79,6 @@ def _rig_spec(rig: str | os.PathLike[str] | RigSpec) -> RigSpec:
     return load_rig(name)
 
 
-def _clock(clock: str | Clock | None, spec: RigSpec) -> tuple[Clock, str]:
-    from gelrig.session import check_clock
-    from instrument.clock import clock_from_spec
-
-    if clock is None:
-        clock = "virtual" if spec.simulated else "real"
-    if isinstance(clock, str):
-        made, text = clock_from_spec(clock), clock
-    else:
-        made, text = clock, type(clock).__name__.removesuffix("Clock").lower()
-    check_clock(spec, made, text)
-    return made, text
-
-
 class RigSession:
     """An open rig: its instruments (through their contracts, under the rig file's caps),
     its clock, and runs recorded on it. Use as a context manager (:func:`open_rig`)."""
@@ -122,14 +108,12 @@ class RigSession:
         ``subscribers`` get every event of the run (the same stream the CLI and GUI use).
         A run that ends short (abort, trip, fault, a script's error) has stopped all motion
         first; its state says so, nothing is raised (Ctrl-C is re-raised after the stop)."""
-        from gelrig.session import default_run_dir, keep_script, metadata
+        from gelrig.session import default_run_dir, new_run
 
         procedure = _procedure(protocol)
         self._check_kind(procedure)
         path = Path(out) if out is not None else default_run_dir(procedure)
-        check_out_dir(path)
-        run = RunDirectory.create(path, metadata(procedure, self.spec, self.clock_spec))
-        keep_script(procedure, run)
+        run = new_run(procedure, self.spec, self.clock_spec, path)
         with run.lock():
             return self._execute(procedure, run, None, show, subscribers)
 
@@ -137,23 +121,17 @@ class RigSession:
                subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
         """Continue a run that ended short from its last completed step, on this rig (the
         run's protocol, or its script run again with completed steps replayed)."""
-        from protocols.script import procedure_from_table
+        from gelrig.session import prepare_resume, resumable
 
         run = RunDirectory(os.fspath(run_dir))
-        meta = run.read_metadata()
-        if meta.get("status") == "completed":
+        if run.read_metadata().get("status") == "completed":
             return _result(run)
-        procedure, notes = procedure_from_table(meta["protocol"],
-                                                str(meta.get("protocol_file", "<run.json>")),
-                                                run.path)
+        meta, procedure, notes = resumable(run)
         for note in notes:
             log.warning("%s", note)
         self._check_kind(procedure)
         with run.lock():
-            run.archive_incomplete()
-            completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
-            run.reserve_space()
-            run.update(resumed=[*meta.get("resumed", []), self.clock_spec], storage_fault=None)
+            completed, _ = prepare_resume(run, meta, self.clock_spec)
             return self._execute(procedure, run, completed, show, subscribers)
 
     def _check_kind(self, procedure: Procedure) -> None:
@@ -294,8 +272,10 @@ def open_rig(rig: str | os.PathLike[str] | RigSpec = "compression",
     rig), ``"real"`` (default otherwise), ``"paced:K"``, or a Clock. Use it as a context
     manager: leaving the block stops everything, and by an error or Ctrl-C first puts the
     sample in its safe state."""
+    from gelrig.session import make_clock
+
     spec = _rig_spec(rig)
-    made, text = _clock(clock, spec)
+    made, text = make_clock(clock, spec)
     return RigSession(spec, made, text)
 
 

@@ -50,6 +50,64 @@ def check_clock(rig: RigSpec, clock: Clock, spec: str) -> None:
                           "use --clock real (virtual and paced time need a simulated rig)")
 
 
+def make_clock(clock: str | Clock | None, rig: RigSpec) -> tuple[Clock, str]:
+    """The clock of a run on ``rig`` and how run.json names it: ``clock`` as ``real``,
+    ``virtual`` or ``paced:K`` (default: virtual on a simulated rig, real otherwise), or a
+    Clock; checked against the rig (:func:`check_clock`; errors name ``--clock``)."""
+    from instrument.clock import clock_from_spec
+
+    if clock is None:
+        clock = "virtual" if rig.simulated else "real"
+    if isinstance(clock, str):
+        try:
+            made, text = clock_from_spec(clock), clock
+        except ConfigError as exc:
+            raise ConfigError("--clock", exc.value, exc.allowed) from None
+    else:
+        made, text = clock, type(clock).__name__.removesuffix("Clock").lower()
+    check_clock(rig, made, text)
+    return made, text
+
+
+def new_run(protocol: Procedure, rig: RigSpec, clock_spec: str, out: Path) -> RunDirectory:
+    """A new run directory for ``protocol`` on ``rig``: run.json's metadata, and a copy of
+    the script beside the data for a script run."""
+    from instrument.store import check_out_dir
+
+    check_out_dir(out)
+    run = RunDirectory.create(out, metadata(protocol, rig, clock_spec))
+    keep_script(protocol, run)
+    return run
+
+
+def resumable(run: RunDirectory) -> tuple[dict[str, Any], Procedure, list[str]]:
+    """What a resume of ``run`` needs from its run.json: the metadata, the procedure to run
+    again (its protocol table, or the script it names) and notes for people."""
+    from protocols.script import procedure_from_table
+
+    meta = run.read_metadata()
+    for key in ("protocol", "rig"):
+        if not isinstance(meta.get(key), dict):
+            raise ConfigError(key, meta.get(key, "missing"), "run.json must hold the "
+                              f"{key} table to resume", str(run.meta_path))
+    procedure, notes = procedure_from_table(meta["protocol"],
+                                            str(meta.get("protocol_file", "<run.json>")),
+                                            run.path)
+    return meta, procedure, notes
+
+
+def prepare_resume(run: RunDirectory, meta: Mapping[str, Any], clock_spec: str
+                   ) -> tuple[dict[int, Mapping[str, Any]], list[str]]:
+    """Before a resume (the run locked): keep the partial data of unfinished steps under new
+    names, reserve space, record the resume; returns the completed steps' results by index
+    and the archived files."""
+    archived = run.archive_incomplete()
+    completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+    run.reserve_space()
+    run.update(resumed=[*meta.get("resumed", []), clock_spec], storage_fault=None)
+    return completed, archived
+
+
 class Interrupts:
     """Ctrl-C presses of a run: the first pauses (Enter resumes), the second aborts; a run
     that does not end within :data:`GRACE` s of the abort is ended by :func:`execute`."""

@@ -164,14 +164,6 @@ class Run:
         log.info("%s", message)
 
 
-@dataclass
-class Loaded:
-    """A script file once loaded: its protocol and what is worth saying about it."""
-
-    script: Script
-    notes: list[str] = field(default_factory=list)
-
-
 def load_script(path: str | Path, entry: str | None = None) -> Script:
     """Import a script file and return the protocol it defines (the one decorated with
     :func:`protocol`; ``entry`` picks one by function name when it defines several)."""
@@ -196,7 +188,8 @@ def load_script(path: str | Path, entry: str | None = None) -> Script:
 COPY_DIR = "script"
 
 
-def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path) -> Loaded:
+def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path
+                      ) -> tuple[Script, list[str]]:
     """The script a run.json's protocol table records (for resume): from its file, or from
     the copy in the run directory when the file is gone; notes say which and whether it
     changed since."""
@@ -222,7 +215,7 @@ def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path) -> L
     if not isinstance(params, Mapping):
         raise ConfigError("protocol.params", params, "a table of the script's parameters",
                           source)
-    return Loaded(script.with_params(**params), notes)
+    return script.with_params(**params), notes
 
 
 def procedure_from_table(table: Mapping[str, Any], source: str,
@@ -231,8 +224,7 @@ def procedure_from_table(table: Mapping[str, Any], source: str,
     file's steps, or the script it names; and notes for people (a script that changed)."""
     head = table.get("protocol") if isinstance(table, Mapping) else None
     if isinstance(head, Mapping) and "script" in head:
-        loaded = script_from_table(table, source, run_dir)
-        return loaded.script, loaded.notes
+        return script_from_table(table, source, run_dir)
     return parse_protocol(dict(table), source), []
 
 

@@ -171,22 +171,9 @@ def disk_warning(out: Path, data_bytes: int) -> str:
             f"about {human_bytes(need)}")
 
 
-def _clock(spec: str | None, rig: RigSpec) -> tuple[Any, str]:
-    from gelrig.session import check_clock
-    from instrument.clock import clock_from_spec
-
-    spec = spec or ("virtual" if rig.simulated else "real")
-    try:
-        clock = clock_from_spec(spec)
-    except ConfigError as exc:
-        raise ConfigError("--clock", exc.value, exc.allowed) from None
-    check_clock(rig, clock, spec)
-    return clock, spec
-
-
 def cmd_run(args: argparse.Namespace) -> int:
-    from gelrig.session import LOG_NAME, default_run_dir, execute, keep_script, metadata
-    from instrument.store import RunDirectory, check_out_dir
+    from gelrig.session import LOG_NAME, default_run_dir, execute, make_clock, new_run
+    from instrument.store import check_out_dir
 
     protocol = resolve_protocol(args.protocol, args.param)
     rig = resolve_rig(args.rig, protocol)
@@ -195,9 +182,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     failed = print_plan(protocol, rig)
     if failed:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
-    clock, spec = _clock(args.clock, rig)
-    run = RunDirectory.create(out, metadata(protocol, rig, spec))
-    keep_script(protocol, run)
+    clock, spec = make_clock(args.clock, rig)
+    run = new_run(protocol, rig, spec, out)
     with run.lock():
         print(f"\nrecording to {out.resolve()} ({spec} clock)")
         try:
@@ -223,26 +209,19 @@ def _finish(run: RunDirectory, state: str, reason: str) -> int:
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
-    from gelrig.session import execute
+    from gelrig.session import execute, make_clock, prepare_resume, resumable
     from instrument.store import RunDirectory
     from protocols.rigfile import parse_rig
-    from protocols.script import procedure_from_table
 
     source = RunDirectory(args.run_dir)
-    meta = source.read_metadata()
-    if meta.get("status") == "completed":
+    if source.read_metadata().get("status") == "completed":
         print(f"{source.path} already completed; nothing to resume")
         return 0
-    for key in ("protocol", "rig"):
-        if not isinstance(meta.get(key), dict):
-            raise ConfigError(key, meta.get(key, "missing"), "run.json must hold the "
-                              f"{key} table to resume", str(source.meta_path))
-    protocol, notes = procedure_from_table(meta["protocol"],
-                                           meta.get("protocol_file", "<run.json>"), source.path)
+    meta, protocol, notes = resumable(source)
     for note in notes:
         print(f"note: {note}")
     rig = parse_rig(meta["rig"], meta.get("rig_file", "<run.json>"))
-    clock, spec = _clock(args.clock or meta.get("clock"), rig)
+    clock, spec = make_clock(args.clock or meta.get("clock"), rig)
     with contextlib.ExitStack() as held:
         held.enter_context(source.lock())
         run = source
@@ -250,12 +229,9 @@ def cmd_resume(args: argparse.Namespace) -> int:
             run = source.copy_to(args.out)
             held.enter_context(run.lock())
             print(f"copied {source.path} to {run.path}")
-        archived = run.archive_incomplete()
-        completed = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+        completed, archived = prepare_resume(run, meta, spec)
         print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
               + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
-        run.reserve_space()
-        run.update(resumed=[*meta.get("resumed", []), spec], storage_fault=None)
         state, runner = execute(protocol, rig, clock, run, completed)
         return _finish(run, state.value, runner.reason)
 

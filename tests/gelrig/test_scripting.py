@@ -233,3 +233,12 @@ def test_the_public_surface_is_listed_once_and_documented() -> None:
         assert inspect.getdoc(value), f"gelrig.{name} has no docstring"
         assert f"`{name}`" in page, f"docs/scripting.md does not list gelrig.{name}"
     assert sorted(dir(gelrig)) == sorted([*gelrig.__all__, "__version__"])
+
+
+def test_resuming_from_python_a_run_json_without_its_protocol_is_one_line(tmp_path) -> None:
+    from instrument.store import RunDirectory
+
+    run = RunDirectory.create(tmp_path / "run", {"status": "failed"})
+    with gelrig.open_rig("compression") as rig, pytest.raises(
+            gelrig.ConfigError, match=r"run\.json must hold the protocol table to resume"):
+        rig.resume(run.path)

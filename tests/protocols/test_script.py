@@ -336,5 +336,5 @@ def test_script_parameters_are_checked_kept_and_given_back_on_resume(tmp_path) -
     seen = events(bus)
     assert Runner(rig, given, bus).run().value == "completed"
     assert [e.params["strain"] for e in seen if isinstance(e, StepStarted)] == [0.01, 0.03]
-    again = script_from_table(given.table, str(file), tmp_path).script
+    again, _ = script_from_table(given.table, str(file), tmp_path)
     assert again.params == {"strains": [0.01, 0.03], "hold": "20 s"}
