@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/demo
 
-.PHONY: demo test lint bench clean
+.PHONY: demo gui test test-fast lint bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,8 +22,19 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 demo: $(VENV)/.installed
 	$(BIN)/gelrig demo --out $(OUT)
 
+$(VENV)/.installed-gui: pyproject.toml | $(BIN)/python
+	$(BIN)/pip install --quiet -e '.[gui]'
+	touch $@ $(VENV)/.installed
+
+# The window on the built-in simulated compression rig (RIG=path/to/rig.toml for another).
+gui: $(VENV)/.installed-gui
+	$(BIN)/gelrig gui $(if $(RIG),--rig $(RIG))
+
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q
+
+test-fast: $(VENV)/.installed-dev
+	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check .

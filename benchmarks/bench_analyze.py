@@ -20,21 +20,22 @@ from pathlib import Path
 from _timing import median_time
 
 from gelrig.analyze_run import analyze_run
-from instrument.store import RunDirectory, read_step
+from gelrig.instrument.core.store import RunDirectory, read_step
 
 
 def record(name: str, out: Path) -> Path:
     """The paper's protocol ``name`` on its simulated rig, recorded to ``out``."""
-    from gelrig.session import execute, metadata
-    from instrument.clock import VirtualClock
-    from protocols.events import RunState
-    from protocols.rigfile import default_rig, load_rig
-    from protocols.spec import load_protocol, paper_protocol
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.protocols.events import RunState
+    from gelrig.protocols.host import run_metadata as metadata
+    from gelrig.protocols.rigfile import default_rig, load_rig
+    from gelrig.protocols.spec import load_protocol, paper_protocol
+    from gelrig.terminal import record_run
 
     protocol = load_protocol(paper_protocol(name))
     spec = load_rig(default_rig(protocol.rig))
     run = RunDirectory.create(out, metadata(protocol, spec, "virtual"))
-    state, _ = execute(protocol, spec, VirtualClock(), run, show=False)
+    state, _ = record_run(protocol, spec, VirtualClock(), run, show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"recording paper:{name} ended {state.value}")
     return out

@@ -24,10 +24,10 @@ import serial
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drivers.kdc101 import KDC101  # noqa: E402
-from drivers.kdc101.apt import AptFramer, MsgId, command, encode  # noqa: E402
-from instrument.clock import VirtualClock  # noqa: E402
-from simulators.kdc101 import KDC101Simulator, register  # noqa: E402
+from gelrig.drivers.kdc101 import KDC101  # noqa: E402
+from gelrig.drivers.kdc101.apt import AptFramer, MsgId, command, encode  # noqa: E402
+from gelrig.instrument.core.clock import VirtualClock  # noqa: E402
+from gelrig.simulators.kdc101 import KDC101Simulator, register  # noqa: E402
 
 REQUEST = encode(command(MsgId.MOT_REQ_POSCOUNTER, 1))
 REPLY_LEN = 12
@@ -109,7 +109,7 @@ def main() -> int:
     stage.close()
 
     # TCP server in its own process, real clock, pyserial socket:// client.
-    server, line = start([sys.executable, "-m", "simulators.kdc101.serve", "--tcp",
+    server, line = start([sys.executable, "-m", "gelrig.simulators.kdc101.serve", "--tcp",
                           "127.0.0.1:0", "--clock", "real"])
     address = line.rsplit(" ", 1)[-1]
     try:

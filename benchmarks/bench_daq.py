@@ -27,12 +27,12 @@ import numpy as np
 from nidaqmx.constants import AcquisitionType, TerminalConfiguration
 from nidaqmx.stream_readers import AnalogSingleChannelReader
 
-from drivers.usb6001 import Usb6001Config, Usb6001ForceSensor
-from instrument import paper
-from instrument.clock import Clock, RealClock, VirtualClock
-from instrument.loadcell import LoadCellChain
-from instrument.plate_contact import PlateSphereContact
-from simulators.usb6001 import (
+from gelrig.drivers.usb6001 import Usb6001Config, Usb6001ForceSensor
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.clock import Clock, RealClock, VirtualClock
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.plate_contact import PlateSphereContact
+from gelrig.simulators.usb6001 import (
     DeviceSpec,
     SampleCounterSignal,
     SimulatedUsb6001,

@@ -20,12 +20,12 @@ import tempfile
 from pathlib import Path
 
 from gelrig.analyze_run import analyze_run
-from gelrig.session import execute
-from instrument.clock import VirtualClock
-from instrument.hold_analysis import analyse_hold
-from instrument.store import RunDirectory, read_step
-from protocols.rigfile import default_rig, load_rig
-from protocols.spec import parse_protocol
+from gelrig.instrument.analysis.hold_analysis import analyse_hold
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.store import RunDirectory, read_step
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import parse_protocol
+from gelrig.terminal import record_run
 
 TOUCH, G_E = 6.2e-3, 7146.0
 
@@ -40,10 +40,11 @@ def one_run(folder: Path, seed: int, hold: str) -> tuple[float, float, float, fl
     steps = [{"kind": "compression_contact_search", "confirm": 2, "rate": "100 Hz"},
              {"kind": "ramp_hold", "hold": hold, "rate": "100 Hz", "terms": 1}]
     protocol = parse_protocol({"protocol": {"name": "touch", "rig": "compression"},
+                               "sample": {"diameter": "18.63 mm"},  # the simulated sphere
                                "step": steps})
     spec = load_rig(rig)
     run = RunDirectory.create(folder / "run", {"protocol": protocol.table, "rig": spec.table})
-    execute(protocol, spec, VirtualClock(), run, show=False)
+    record_run(protocol, spec, VirtualClock(), run, show=False)
     hold_result = analyze_run(run.path, folder / "out").holds[1]
     overlap = hold_result.overlap
     assert overlap is not None

@@ -37,9 +37,9 @@ from PySide6.QtCore import QElapsedTimer, QEventLoop, Qt, QTimer
 from PySide6.QtWidgets import QApplication
 
 from gelrig.commands.gui import make_services
-from gui.binding import check_binding
-from gui.mainwindow import PACES, MainWindow
-from gui.rundata import RunData
+from gelrig.gui.binding import check_binding
+from gelrig.gui.mainwindow import PACES, MainWindow
+from gelrig.gui.rundata import RunData
 
 PERIOD_MS = 5
 
@@ -86,7 +86,8 @@ def latency(seconds: float) -> tuple[float, float, int]:
 
 
 def hold_protocol(hold: float, strain: float, strain_rate: float) -> dict[str, object]:
-    return {"protocol": {"name": "bench hold", "rig": "compression"}, "step": [
+    return {"protocol": {"name": "bench hold", "rig": "compression"},
+            "sample": {"diameter": "18.63 mm"}, "step": [
         {"kind": "ramp_hold", "first_touch": "6.2 mm", "strain": strain,
          "strain_rate": f"{strain_rate} /s", "hold": f"{hold} s", "rate": "1000 Hz",
          "terms": 1}]}
@@ -98,10 +99,10 @@ def stream(app: QApplication, window: MainWindow, seconds: float) -> None:
     # Reach the hold as fast as possible, then pace it.
     window.protocol.set_table(hold_protocol(600_000, 0.01, 0.01), "<bench: streaming>")
     window.protocol.run_button.click()
-    if not window.session.running:
+    if not window.desk.running:
         raise SystemExit(f"the run did not start: {window.protocol.why_not}\n"
                          f"{window.log.toPlainText()}")
-    data = window.session.data
+    data = window.desk.data
     pump(app, lambda: data.samples() > 5000, 60)
     for label, rate in (("1x  (1 kS/s)", 1.0), ("10x (10 kS/s)", 10.0),
                         ("100x (100 kS/s)", 100.0), ("as fast as possible", math.inf)):
@@ -111,20 +112,20 @@ def stream(app: QApplication, window: MainWindow, seconds: float) -> None:
         rate_seen = (data.samples() - before) / seconds
         print(f"  streaming 1 kHz data at {label:20s}{med:7.2f} / {worst:7.2f} ms   "
               f"({rate_seen / 1e3:,.1f} kS/s reached the plots)")
-    window.session.abort("benchmark")
-    pump(app, lambda: not window.session.running, 60)
+    window.desk.abort("benchmark")
+    pump(app, lambda: not window.desk.running, 60)
 
 
 def headless(hold: float) -> None:
     """The same hold with no GUI (for the baseline): RSS before and after, as 'MB MB'."""
     from gelrig.factory import build_rig
-    from instrument.clock import PacedClock
-    from instrument.store import RunDirectory
-    from protocols.events import EventBus
-    from protocols.recorder import Recorder
-    from protocols.rigfile import default_rig, load_rig
-    from protocols.runner import Runner
-    from protocols.spec import parse_protocol
+    from gelrig.instrument.core.clock import PacedClock
+    from gelrig.instrument.core.store import RunDirectory
+    from gelrig.protocols.events import EventBus
+    from gelrig.protocols.recorder import Recorder
+    from gelrig.protocols.rigfile import default_rig, load_rig
+    from gelrig.protocols.runner import Runner
+    from gelrig.protocols.spec import parse_protocol
 
     rig = build_rig(load_rig(default_rig("compression")), PacedClock(math.inf))
     before = rss_mb()
@@ -155,7 +156,7 @@ def main() -> None:
     window = MainWindow(make_services(pace=math.inf, runs=runs))
     window.show()
     window.start()
-    pump(app, lambda: window.session.rig is not None, 30)
+    pump(app, lambda: window.desk.rig is not None, 30)
     pump(app, lambda: window.instruments.values["force_N"].text() != "-", 10)
     med, worst, ticks = latency(args.seconds)
     rss_idle = rss_mb()
@@ -165,12 +166,12 @@ def main() -> None:
     window.protocol.set_table(hold_protocol(args.hold, 0.06, 0.002), "<bench: 3000 s hold>")
     t0 = time.perf_counter()
     window.protocol.run_button.click()
-    pump(app, lambda: not window.session.running, 1200)
+    pump(app, lambda: not window.desk.running, 1200)
     wall = time.perf_counter() - t0
-    n = window.session.data.samples()
+    n = window.desk.data.samples()
     t1 = time.perf_counter()
     window.plots.clear()
-    window.plots.refresh(window.session.data)
+    window.plots.refresh(window.desk.data)
     window.plots.paint_now()
     redraw = time.perf_counter() - t1
     app.processEvents()
@@ -182,12 +183,12 @@ def main() -> None:
           f"{(rss_after - rss_idle) * 1e6 / max(n, 1):.0f} B per sample)")
     print(f"  baseline: the same run with no GUI (runner, recorder, simulators) +"
           f"{headless_growth:.0f} MB; the GUI's sample buffers hold "
-          f"{window.session.data.nbytes() / 2**20:.0f} MB")
+          f"{window.desk.data.nbytes() / 2**20:.0f} MB")
     print(f"  plotted {window.plots.points() / 1e6:.2f}e6 samples; one full-view redraw "
           f"from scratch {redraw * 1e3:.0f} ms")
 
     window.plots.clear()
-    window.session.data = RunData()
+    window.desk.data = RunData()
     app.processEvents()
     gc.collect()
     print(f"\nGUI event-loop latency: lateness of a {PERIOD_MS} ms timer "

@@ -29,9 +29,9 @@ from bench_gui import pump, rss_mb
 from PySide6.QtWidgets import QApplication
 
 from gelrig.commands.gui import make_services
-from gui.binding import check_binding
-from gui.mainwindow import PACES, MainWindow
-from protocols.spec import paper_protocol
+from gelrig.gui.binding import check_binding
+from gelrig.gui.mainwindow import PACES, MainWindow
+from gelrig.protocols.spec import paper_protocol
 
 #: The issue's target: the GUI stays within this much of its idle RSS (MB).
 TARGET_MB = 300.0
@@ -57,7 +57,7 @@ def main() -> None:
     window = MainWindow(make_services(pace=math.inf, runs=runs))
     window.show()
     window.start()
-    pump(app, lambda: window.session.rig is not None, 30)
+    pump(app, lambda: window.desk.rig is not None, 30)
     window.pace_box.setCurrentIndex(len(PACES) - 1)
     pump(app, lambda: window.instruments.values["force_N"].text() != "-", 10)
     idle = settle(app)
@@ -75,16 +75,16 @@ def main() -> None:
         pump(app, lambda: window.protocol.run_button.isEnabled(), 120)
         t0 = time.perf_counter()
         window.protocol.run_button.click()
-        if not window.session.running:
+        if not window.desk.running:
             raise SystemExit(f"run {k + 1} did not start: {window.protocol.why_not}\n"
                              f"{window.log.toPlainText()[-2000:]}")
-        pump(app, lambda: not window.session.running, 1800)
+        pump(app, lambda: not window.desk.running, 1800)
         wall = time.perf_counter() - t0
         pump(app, lambda: window.protocol.state.finished, 30)
         rss = settle(app)
         growth.append(rss - idle)
         print(f"  after run {k + 1:2d} ({window.protocol.state.value}, "
-              f"{window.session.data.samples() / 1e6:.2f}e6 samples, {wall:5.1f} s wall): "
+              f"{window.desk.data.samples() / 1e6:.2f}e6 samples, {wall:5.1f} s wall): "
               f"{rss:6.0f} MB  (+{rss - idle:4.0f} MB over idle)", flush=True)
     tail = growth[len(growth) // 2:]
     steady = statistics.median(tail)

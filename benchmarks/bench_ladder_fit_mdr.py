@@ -19,21 +19,21 @@ from pathlib import Path
 from _timing import median_time
 
 from gelrig.analyze_run import _arm, _history, _search_geometry, load_steps
-from instrument import paper
-from instrument.ladder_analysis import analyse_ladder_step
-from instrument.model_fit import FitSetup, ModelFit, Trajectory, fit_ladder
-from instrument.store import RunDirectory
+from gelrig.instrument.analysis.ladder_analysis import analyse_ladder_step
+from gelrig.instrument.analysis.model_fit import FitSetup, ModelFit, Trajectory, fit_ladder
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.instrument.physics import paper
 
 SPEEDS = ["1.19e-4 m/s", "2.37e-4 m/s"]
 
 
 def record(out: Path) -> tuple[RunDirectory, object]:
-    from gelrig.session import execute
-    from instrument.clock import VirtualClock
-    from instrument.fields import read_toml
-    from protocols.events import RunState
-    from protocols.rigfile import default_rig, parse_rig
-    from protocols.spec import load_protocol, paper_protocol, parse_protocol
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.instrument.core.fields import read_toml
+    from gelrig.protocols.events import RunState
+    from gelrig.protocols.rigfile import default_rig, parse_rig
+    from gelrig.protocols.spec import load_protocol, paper_protocol, parse_protocol
+    from gelrig.terminal import record_run
 
     table = copy.deepcopy(read_toml(default_rig("shear"), "rig file"))
     table["simulator"]["unloading"] = "mdr"
@@ -46,7 +46,7 @@ def record(out: Path) -> tuple[RunDirectory, object]:
     ladder["overlaps"], ladder["speeds"] = 1, SPEEDS
     proto = parse_protocol(proto_table, "reduced paper ladder")
     run = RunDirectory.create(out, {"protocol": proto.table, "rig": spec.table})
-    state, _ = execute(proto, spec, VirtualClock(), run, show=False)
+    state, _ = record_run(proto, spec, VirtualClock(), run, show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"recording ended {state.value}")
     return run, spec.simulator  # type: ignore[attr-defined]

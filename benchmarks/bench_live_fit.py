@@ -23,11 +23,11 @@ import time
 import numpy as np
 
 from benchmarks._timing import median_time
-from instrument import paper
-from instrument.analysis import fit_relaxation
-from instrument.contact import Material
-from instrument.live_fit import LiveFit, StopRule
-from instrument.live_fit_sim import BLOCK, modulus_noise, simulate_hold
+from gelrig.instrument.analysis.live_fit import LiveFit, StopRule
+from gelrig.instrument.analysis.live_fit_sim import BLOCK, modulus_noise, simulate_hold
+from gelrig.instrument.analysis.relaxation import fit_relaxation
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.contact import Material
 
 HOLD, RATE = 3000.0, 1000.0
 CASES = (("plate", paper.PLATES, 1), ("shell", paper.SHELL, 2))

@@ -2,8 +2,10 @@
 
 Run: python benchmarks/bench_mdr.py [--repeats 5]
 
-Prints samples/s (median of the repeats) of instrument.mdr.MdrContact (300 elements) and of
-instrument.contact.NormalContact on the same records, and their ratio (MDR time / cutoff
+Prints samples/s (median of the repeats) of gelrig.instrument.physics.mdr.MdrContact (300 elements)
+and of
+gelrig.instrument.physics.contact.NormalContact on the same records, and their ratio (MDR time /
+cutoff
 time): a 3000 s hold at 1 kHz (3e6 samples, 1 and 2 relaxation terms), one pass of the shear
 ladder at 0.78 mm sampled every 1 um of travel (the simulator's sub-step) at the slowest and
 fastest speed, the same pass streamed in blocks of 1000 and 100 samples (as a simulator
@@ -23,11 +25,11 @@ from collections.abc import Callable
 import numpy as np
 from _timing import median_time
 
-from instrument import paper
-from instrument.compression import ramp_hold_overlap
-from instrument.contact import Material, NormalContact
-from instrument.mdr import MdrContact
-from instrument.sliding import SlidingGeometry
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.compression import ramp_hold_overlap
+from gelrig.instrument.physics.contact import Material, NormalContact
+from gelrig.instrument.physics.mdr import MdrContact
+from gelrig.instrument.physics.sliding import SlidingGeometry
 
 N_HOLD = 3_000_000
 DT_HOLD = 1e-3

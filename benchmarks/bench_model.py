@@ -16,9 +16,14 @@ import argparse
 import numpy as np
 from _timing import median_time
 
-from instrument import paper
-from instrument.compression import ramp_hold_overlap
-from instrument.contact import Material, NormalContact, hertz_prefactor, normal_force_uniform
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.compression import ramp_hold_overlap
+from gelrig.instrument.physics.contact import (
+    Material,
+    NormalContact,
+    hertz_prefactor,
+    normal_force_uniform,
+)
 
 N = 3_000_000
 DT = 1e-3

@@ -20,15 +20,15 @@ from pathlib import Path
 
 from _timing import median_time
 
-from gelrig.session import execute
-from instrument import paper
-from instrument.clock import VirtualClock
-from instrument.compression import ramp_hold
-from instrument.sliding import SlidingGeometry, shear_pass
-from instrument.store import RunDirectory
-from protocols.events import RunState
-from protocols.rigfile import default_rig, load_rig
-from protocols.spec import load_protocol, paper_protocol
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.compression import ramp_hold
+from gelrig.instrument.physics.sliding import SlidingGeometry, shear_pass
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import load_protocol, paper_protocol
+from gelrig.terminal import record_run
 
 
 def run_protocol(kind: str, folder: Path, **truth: object) -> tuple[float, float]:
@@ -39,7 +39,7 @@ def run_protocol(kind: str, folder: Path, **truth: object) -> tuple[float, float
     rig = load_rig(default_rig(kind))
     if truth:
         rig = dataclasses.replace(rig, simulator=dataclasses.replace(rig.simulator, **truth))
-    state, _ = execute(load_protocol(paper_protocol(kind)), rig, clock,
+    state, _ = record_run(load_protocol(paper_protocol(kind)), rig, clock,
                        RunDirectory.create(folder, {}), show=False)
     if state is not RunState.COMPLETED:
         raise SystemExit(f"{kind} protocol ended {state.value}")

@@ -23,9 +23,9 @@ from _timing import median_time
 from bench_protocols import model_compression, model_ladder, run_protocol
 
 from gelrig.factory import build_twin
-from protocols.rehearsal import rehearse
-from protocols.rigfile import default_rig, load_rig
-from protocols.spec import load_protocol, paper_protocol
+from gelrig.protocols.rehearsal import rehearse
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import load_protocol, paper_protocol
 
 
 def rehearsal(kind: str) -> tuple[float, float, float]:

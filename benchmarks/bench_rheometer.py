@@ -22,10 +22,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drivers.mcr501 import MCR501, open_resource_manager
-from instrument.clock import VirtualClock
-from instrument.sliding import SlidingGeometry
-from simulators.mcr501 import (
+from gelrig.drivers.mcr501 import MCR501, open_resource_manager
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.physics.sliding import SlidingGeometry
+from gelrig.simulators.mcr501 import (
     DirectLink,
     MCR501Simulator,
     SimConfig,

@@ -17,8 +17,8 @@ import statistics
 import time
 from dataclasses import replace
 
-from simulators.mcr501.config import SimConfig
-from simulators.mcr501.physics import ShearCell
+from gelrig.simulators.mcr501.config import SimConfig
+from gelrig.simulators.mcr501.physics import ShearCell
 
 SPEEDS = (2.38e-5, 2.37e-4)
 READ_EVERY = 1.7  # s of virtual time

@@ -140,7 +140,7 @@ class Rest(gelrig.StepDefinition[gelrig.CompressionRig, RestParams, RestResult])
         p = params
         return gelrig.StepPlan(p.duration, p.clear, [
             f"back off to {p.clear * 1e3:g} mm before first touch if closer, then record "
-            f"the force for {p.duration:g} s at {p.rate:g} Hz"])
+            f"the force for {p.duration:g} s at {p.rate:g} Hz"], samples=p.duration * p.rate)
 
     def preflight(self, params: RestParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:
@@ -182,8 +182,8 @@ class LoadUnloadParams(gelrig.StepParams):
     """Parameters of one loading-unloading cycle: how deep, how fast, from where."""
 
     diameter: float = gelrig.param(gelrig.Field(
-        "diameter", "m", 18.63e-3, 0.0, 0.1, lo_open=True, display="mm",
-        help="sphere diameter"))
+        "diameter", "m", None, 0.0, 0.1, lo_open=True, display="mm",
+        help="sphere diameter; default: the run's sample's (LoadUnload.sample_fields)"))
     strain: float = gelrig.param(gelrig.Field("strain", "", 0.04, 0.0, 0.3, lo_open=True,
                                               help="turn-around overlap / diameter"))
     depth: float | None = gelrig.param(gelrig.Field(
@@ -239,6 +239,9 @@ class LoadUnload(gelrig.StepDefinition[gelrig.CompressionRig, LoadUnloadParams,
     rig = gelrig.CompressionRig
     Params, Result = LoadUnloadParams, LoadUnloadResult
     description = "loading-unloading cycle"
+    # the diameter is the sample's: taken from the run's sample when the step gives none,
+    # refused before anything moves when neither does (no sphere is assumed)
+    sample_fields: ClassVar[dict[str, str]] = {"diameter": "diameter"}
     columns: ClassVar[dict[str, str]] = COLUMNS
 
     def plan(self, params: LoadUnloadParams, limits: Limits) -> gelrig.StepPlan:
@@ -252,7 +255,8 @@ class LoadUnload(gelrig.StepDefinition[gelrig.CompressionRig, LoadUnloadParams,
                                            f"{limits.max_overlap * 1e3:g} mm"))
         return gelrig.StepPlan(2 * span / p.speed + p.tare_time, 2 * span + 2 * p.retract, [
             f"in to {p.turn * 1e3:.4f} mm past first touch and back out at "
-            f"{p.speed * 1e6:.2f} um/s: {2 * span / p.speed:.1f} s at {p.rate:g} Hz"], checks)
+            f"{p.speed * 1e6:.2f} um/s: {2 * span / p.speed:.1f} s at {p.rate:g} Hz"], checks,
+            samples=(2 * span / p.speed + p.tare_time) * p.rate)
 
     def preflight(self, params: LoadUnloadParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:
@@ -377,7 +381,7 @@ class Creep(gelrig.StepDefinition[gelrig.CompressionRig, CreepParams, CreepResul
             f"{p.max_depth * 1e3:g} mm past first touch, {ramp:.0f} s)",
             f"hold {p.force * 1e3:g} mN for {p.hold:g} s: every {p.period:g} s correct "
             f"{p.gain:g} of the error (at most {p.max_step * 1e6:g} um), at {p.rate:g} Hz"],
-            checks)
+            checks, samples=(ramp + p.hold + p.tare_time) * p.rate)
 
     def preflight(self, params: CreepParams, rig: Rig,
                   earlier: tuple[type[gelrig.StepResult], ...]) -> list[str]:

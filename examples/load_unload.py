@@ -8,8 +8,11 @@ The unloading branch is the data that separates the paper's cutoff unloading mod
 recovery-consistent one (MDR, physics.md 1b): run it on ``examples/rigs/compression_mdr.toml``
 to see the difference on the way out while the loading branch stays the same.
 
-    gelrig run examples/load_unload.py --out runs/cycles
-    gelrig run examples/load_unload.py --rig examples/rigs/compression_mdr.toml --out runs/mdr
+The sphere's diameter is the run's sample's (none is assumed):
+
+    gelrig run examples/load_unload.py --sample-diameter "18.63 mm" --out runs/cycles
+    gelrig run examples/load_unload.py --sample-diameter "18.63 mm" \
+        --rig examples/rigs/compression_mdr.toml --out runs/mdr
 """
 
 import compression_steps  # noqa: F401 (registers rest, load_unload, creep)
@@ -27,7 +30,7 @@ def load_unload(run: gelrig.Run) -> None:
         if i:
             run.step("rest", name=f"rest {i}", duration="60 s", clear="2 mm")
         run.step("load_unload", name=f"cycle at {speed.replace('/', ' per ')}",
-                 diameter="18.63 mm", strain=0.04, speed=speed, approach="0.05 mm",
+                 strain=0.04, speed=speed, approach="0.05 mm",
                  rate="100 Hz")
 
 

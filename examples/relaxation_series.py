@@ -4,8 +4,10 @@ for 120 s between holds (``rest``, from compression_steps.py). Records one step 
 (force, position and overlap columns; results: the relaxation fits of each hold) and one per
 rest (the force baseline and its drift).
 
-    gelrig run examples/relaxation_series.py --out runs/series
-    gelrig plan examples/relaxation_series.py
+The sphere's diameter is the run's sample's (none is assumed):
+
+    gelrig run examples/relaxation_series.py --sample-diameter "18.63 mm" --out runs/series
+    gelrig plan examples/relaxation_series.py --sample-diameter "18.63 mm"
 """
 
 import compression_steps  # noqa: F401 (registers rest, load_unload, creep)
@@ -24,8 +26,8 @@ def relaxation_series(run: gelrig.Run, strains: tuple[float, ...] = STRAINS,
     for i, strain in enumerate(strains):
         if i:
             run.step("rest", name=f"rest {i}", duration=rest, clear="2 mm")
-        run.step("ramp_hold", name=f"hold at {strain:.0%}", diameter="18.63 mm",
-                 strain=strain, strain_rate="0.002 /s", hold=hold, rate="100 Hz", terms=1)
+        run.step("ramp_hold", name=f"hold at {strain:.0%}", strain=strain, strain_rate="0.002 /s",
+                 hold=hold, rate="100 Hz", terms=1)
 
 
 if __name__ == "__main__":

@@ -23,8 +23,9 @@ own packages imports this package.
 - events: :class:`Event`, :class:`StepStarted`, :class:`Samples`, :class:`Progress`,
   :class:`FitUpdate`, :class:`StepFinished`, :class:`Finished`, :class:`RunState`
 - clocks: :class:`VirtualClock`, :class:`RealClock`, :class:`PacedClock`
-- errors: :class:`GelrigError`, :class:`ConfigError`, :class:`LimitError`,
-  :class:`InterlockTripped`, :class:`InstrumentError`, :class:`NotHomed`, :class:`RunEnded`
+- errors: :class:`GelrigError`, :class:`ConfigError`, :class:`LimitError`, :class:`Refused`,
+  :class:`InterlockTripped`, :class:`InstrumentError`, :class:`NotHomed`, :class:`RunEnded`,
+  :class:`FirstTouchUnknown`
 """
 
 from __future__ import annotations
@@ -37,42 +38,49 @@ _SURFACE: dict[str, str] = {
     "open_rig": "gelrig.api", "RigSession": "gelrig.api", "RunResult": "gelrig.api",
     "rehearse": "gelrig.api", "analyze": "gelrig.api", "script_main": "gelrig.api",
     "load_protocol": "gelrig.api",
-    "protocol": "protocols.script", "Run": "protocols.script", "Script": "protocols.script",
+    "protocol": "gelrig.protocols.script", "Run": "gelrig.protocols.script",
+    "Script": "gelrig.protocols.script", "Sample": "gelrig.protocols.sample",
     "register_step": "gelrig.api", "step_kinds": "gelrig.api",
-    "StepDefinition": "protocols.steps.base", "StepParams": "protocols.steps.base",
-    "StepResult": "protocols.steps.base", "StepPlan": "protocols.steps.base",
-    "PlanCheck": "protocols.steps.base", "StepContext": "protocols.context",
-    "Field": "instrument.fields", "FieldList": "instrument.fields",
-    "Choice": "instrument.fields", "param": "instrument.fields", "Where": "instrument.fields",
-    "stage_speed_error": "protocols.caps", "stage_position_error": "protocols.caps",
-    "arm_speed_error": "protocols.caps", "gap_error": "protocols.caps",
-    "ForceRecorder": "protocols.steps.acquire", "ArmRecorder": "protocols.steps.arm",
-    "CompressionRig": "protocols.rig", "ShearRig": "protocols.rig",
-    "CompressionLimits": "protocols.rig", "ShearLimits": "protocols.rig",
-    "Stage": "instrument.stage", "ForceSensor": "instrument.loadcell",
-    "Rheometer": "instrument.rheometer",
-    "SearchResult": "protocols.steps.compression_search",
-    "RampHoldResult": "protocols.steps.ramp_hold",
-    "ShearSearchResult": "protocols.steps.shear_search",
-    "LadderResult": "protocols.steps.ladder",
-    "Event": "protocols.events", "StepStarted": "protocols.events",
-    "Samples": "protocols.events", "Progress": "protocols.events",
-    "FitUpdate": "protocols.events", "StepFinished": "protocols.events",
-    "Finished": "protocols.events", "RunState": "protocols.events",
-    "VirtualClock": "instrument.clock", "RealClock": "instrument.clock",
-    "PacedClock": "instrument.clock",
-    "GelrigError": "instrument.errors", "ConfigError": "instrument.errors",
-    "LimitError": "instrument.errors", "InterlockTripped": "instrument.errors",
-    "RunEnded": "protocols.runner",
-    "InstrumentError": "instrument.errors", "NotHomed": "protocols.rig",
+    "StepDefinition": "gelrig.protocols.steps.base", "StepParams": "gelrig.protocols.steps.base",
+    "StepResult": "gelrig.protocols.steps.base", "StepPlan": "gelrig.protocols.steps.base",
+    "PlanCheck": "gelrig.protocols.steps.base", "StepContext": "gelrig.protocols.context",
+    "Field": "gelrig.instrument.core.fields", "FieldList": "gelrig.instrument.core.fields",
+    "Choice": "gelrig.instrument.core.fields", "param": "gelrig.instrument.core.fields",
+    "Where": "gelrig.instrument.core.fields",
+    "stage_speed_error": "gelrig.protocols.caps", "stage_position_error": "gelrig.protocols.caps",
+    "arm_speed_error": "gelrig.protocols.caps", "gap_error": "gelrig.protocols.caps",
+    "ForceRecorder": "gelrig.protocols.steps.acquire", "ArmRecorder": "gelrig.protocols.steps.arm",
+    "CompressionRig": "gelrig.protocols.rig", "ShearRig": "gelrig.protocols.rig",
+    "CompressionLimits": "gelrig.protocols.rig", "ShearLimits": "gelrig.protocols.rig",
+    "Stage": "gelrig.instrument.contracts.stage",
+    "ForceSensor": "gelrig.instrument.contracts.loadcell",
+    "Rheometer": "gelrig.instrument.contracts.rheometer",
+    "SearchResult": "gelrig.protocols.steps.compression_search",
+    "RampHoldResult": "gelrig.protocols.steps.ramp_hold",
+    "ShearSearchResult": "gelrig.protocols.steps.shear_search",
+    "LadderResult": "gelrig.protocols.steps.ladder",
+    "Event": "gelrig.protocols.events", "StepStarted": "gelrig.protocols.events",
+    "Samples": "gelrig.protocols.events", "Progress": "gelrig.protocols.events",
+    "FitUpdate": "gelrig.protocols.events", "StepFinished": "gelrig.protocols.events",
+    "Finished": "gelrig.protocols.events", "RunState": "gelrig.protocols.events",
+    "VirtualClock": "gelrig.instrument.core.clock", "RealClock": "gelrig.instrument.core.clock",
+    "PacedClock": "gelrig.instrument.core.clock",
+    "GelrigError": "gelrig.instrument.core.errors", "ConfigError": "gelrig.instrument.core.errors",
+    "LimitError": "gelrig.instrument.core.errors", "Refused": "gelrig.instrument.core.errors",
+    "InterlockTripped": "gelrig.instrument.core.errors",
+    "RunEnded": "gelrig.protocols.runner",
+    "InstrumentError": "gelrig.instrument.core.errors", "NotHomed": "gelrig.protocols.rig",
+    "FirstTouchUnknown": "gelrig.protocols.manual_motion",
 }
 
 __all__ = [
     "ArmRecorder", "Choice", "CompressionLimits", "CompressionRig", "ConfigError", "Event",
-    "Field", "FieldList", "Finished", "FitUpdate", "ForceRecorder", "ForceSensor",
+    "Field", "FieldList", "Finished", "FirstTouchUnknown", "FitUpdate", "ForceRecorder",
+    "ForceSensor",
     "GelrigError", "InstrumentError", "InterlockTripped", "LadderResult", "LimitError",
     "NotHomed", "PacedClock", "PlanCheck", "Progress", "RampHoldResult", "RealClock",
-    "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState", "Samples", "Script",
+    "Refused", "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState",
+    "Sample", "Samples", "Script",
     "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "Stage", "StepContext",
     "StepDefinition", "StepFinished", "StepParams", "StepPlan", "StepResult", "StepStarted",
     "VirtualClock", "Where", "analyze", "arm_speed_error", "gap_error", "load_protocol",
@@ -92,26 +100,27 @@ if TYPE_CHECKING:
         script_main,
         step_kinds,
     )
-    from instrument.clock import PacedClock, RealClock, VirtualClock
-    from instrument.errors import (
+    from gelrig.instrument.contracts.loadcell import ForceSensor
+    from gelrig.instrument.contracts.rheometer import Rheometer
+    from gelrig.instrument.contracts.stage import Stage
+    from gelrig.instrument.core.clock import PacedClock, RealClock, VirtualClock
+    from gelrig.instrument.core.errors import (
         ConfigError,
         GelrigError,
         InstrumentError,
         InterlockTripped,
         LimitError,
+        Refused,
     )
-    from instrument.fields import Choice, Field, FieldList, Where, param
-    from instrument.loadcell import ForceSensor
-    from instrument.rheometer import Rheometer
-    from instrument.stage import Stage
-    from protocols.caps import (
+    from gelrig.instrument.core.fields import Choice, Field, FieldList, Where, param
+    from gelrig.protocols.caps import (
         arm_speed_error,
         gap_error,
         stage_position_error,
         stage_speed_error,
     )
-    from protocols.context import StepContext
-    from protocols.events import (
+    from gelrig.protocols.context import StepContext
+    from gelrig.protocols.events import (
         Event,
         Finished,
         FitUpdate,
@@ -121,16 +130,30 @@ if TYPE_CHECKING:
         StepFinished,
         StepStarted,
     )
-    from protocols.rig import CompressionLimits, CompressionRig, NotHomed, ShearLimits, ShearRig
-    from protocols.runner import RunEnded
-    from protocols.script import Run, Script, protocol
-    from protocols.steps.acquire import ForceRecorder
-    from protocols.steps.arm import ArmRecorder
-    from protocols.steps.base import PlanCheck, StepDefinition, StepParams, StepPlan, StepResult
-    from protocols.steps.compression_search import SearchResult
-    from protocols.steps.ladder import LadderResult
-    from protocols.steps.ramp_hold import RampHoldResult
-    from protocols.steps.shear_search import ShearSearchResult
+    from gelrig.protocols.manual_motion import FirstTouchUnknown
+    from gelrig.protocols.rig import (
+        CompressionLimits,
+        CompressionRig,
+        NotHomed,
+        ShearLimits,
+        ShearRig,
+    )
+    from gelrig.protocols.runner import RunEnded
+    from gelrig.protocols.sample import Sample
+    from gelrig.protocols.script import Run, Script, protocol
+    from gelrig.protocols.steps.acquire import ForceRecorder
+    from gelrig.protocols.steps.arm import ArmRecorder
+    from gelrig.protocols.steps.base import (
+        PlanCheck,
+        StepDefinition,
+        StepParams,
+        StepPlan,
+        StepResult,
+    )
+    from gelrig.protocols.steps.compression_search import SearchResult
+    from gelrig.protocols.steps.ladder import LadderResult
+    from gelrig.protocols.steps.ramp_hold import RampHoldResult
+    from gelrig.protocols.steps.shear_search import ShearSearchResult
 
 
 def __getattr__(name: str) -> Any:

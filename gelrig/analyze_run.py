@@ -5,11 +5,14 @@ parsers). It checks the run against its protocol, hands each complete step's col
 pure analysis of ``instrument/``, names whatever is missing, and writes ``report.html`` with
 PNG figures and CSV tables through the report layer:
 
-- compression (``ramp_hold`` steps): :mod:`instrument.hold_analysis` (G(t) over the hold, 1-
-  and 2-term Prony fits with uncertainties, residuals), shown by :mod:`instrument.report_hold`;
-- shear (``speed_ladder`` steps): :mod:`instrument.ladder_analysis` (per-pass l_c, l_g, F_h
+- compression (``ramp_hold`` steps): :mod:`gelrig.instrument.analysis.hold_analysis` (G(t) over the
+hold, 1-
+  and 2-term Prony fits with uncertainties, residuals), shown by
+  :mod:`gelrig.instrument.reports.hold`;
+- shear (``speed_ladder`` steps): :mod:`gelrig.instrument.analysis.ladder_analysis` (per-pass l_c,
+l_g, F_h
   peak/trough, zero-crossing offset and mu, and the ladder-wide model fit), shown by
-  :mod:`instrument.report_ladder`.
+  :mod:`gelrig.instrument.reports.ladder`.
 
 What stays here is what needs the run directory: which steps were planned and recorded,
 their parameters and results, and where the model fit's start geometry comes from.
@@ -17,6 +20,7 @@ their parameters and results, and where the model fit's start geometry comes fro
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -25,23 +29,26 @@ from typing import Any
 
 import numpy as np
 
-from instrument import paper
-from instrument.analysis import RelaxationFit
-from instrument.contact import FloatArray
-from instrument.errors import ConfigError
-from instrument.hold_analysis import HoldAnalysis, NoHold, analyse_hold
-from instrument.ladder_analysis import (
+from gelrig.instrument.analysis.hold_analysis import HoldAnalysis, NoHold, analyse_hold
+from gelrig.instrument.analysis.ladder_analysis import (
     LadderModel,
     LadderStep,
     analyse_ladder_step,
     fit_ladder_model,
 )
-from instrument.model_fit import FitSetup, ModelFit
-from instrument.report import Section, write_report
-from instrument.report_hold import hold_problems, hold_section, hold_summary
-from instrument.report_ladder import ladder_section, ladder_summary
-from instrument.shear_analysis import LadderAnalysis, with_chords
-from instrument.store import RunDirectory, read_step
+from gelrig.instrument.analysis.model_fit import FitSetup, ModelFit
+from gelrig.instrument.analysis.relaxation import RelaxationFit
+from gelrig.instrument.analysis.shear_analysis import LadderAnalysis, with_chords
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.store import RunDirectory, check_path, read_step
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.instrument.reports.document import Section, write_report
+from gelrig.instrument.reports.hold import hold_problems, hold_section, hold_summary
+from gelrig.instrument.reports.ladder import ladder_section, ladder_summary
+from gelrig.protocols.sample import Sample, parse_sample
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -93,7 +100,7 @@ class _Context:
 
 def _planned_steps(meta: Mapping[str, Any], problems: list[str]) -> list[tuple[str, str, dict]]:
     """(kind, name, params) of every step the stored protocol planned."""
-    from protocols.spec import parse_protocol
+    from gelrig.protocols.spec import parse_protocol
 
     table = meta.get("protocol")
     if not isinstance(table, dict):
@@ -112,7 +119,7 @@ def _planned_steps(meta: Mapping[str, Any], problems: list[str]) -> list[tuple[s
 
 
 def _arm(meta: Mapping[str, Any], problems: list[str]) -> float:
-    from protocols.rigfile import ShearRigSpec, parse_rig
+    from gelrig.protocols.rigfile import ShearRigSpec, parse_rig
 
     try:
         rig = parse_rig(meta["rig"], "run.json rig")
@@ -161,7 +168,7 @@ def load_steps(run: RunDirectory, meta: Mapping[str, Any], problems: list[str]) 
 
 def _compliance(meta: Mapping[str, Any], problems: list[str]) -> float:
     """The load cell's compliance (m/N) from the stored rig's ``[force.chain]``; 0 without."""
-    from protocols.rigfile import CompressionRigSpec, parse_rig
+    from gelrig.protocols.rigfile import CompressionRigSpec, parse_rig
 
     try:
         rig = parse_rig(meta["rig"], "run.json rig")
@@ -171,8 +178,46 @@ def _compliance(meta: Mapping[str, Any], problems: list[str]) -> float:
     return float(rig.force.chain.compliance) if isinstance(rig, CompressionRigSpec) else 0.0
 
 
-def _hold(ctx: _Context, step: StepData) -> HoldAnalysis | None:
-    """Analyse a ramp_hold step and add its section; None when there is no fit to show."""
+def _radii(meta: dict[str, Any], r1: float | None, r2: float | None) -> tuple[float, float]:
+    """The shear spheres' radii (m): given, else the run's sample (run.json ``sample``, or the
+    protocol file's ``[sample]``), else the paper's, logged as a warning (a run recorded
+    before samples were inputs)."""
+    table = meta.get("protocol")
+    found = [meta.get("sample"), table.get("sample") if isinstance(table, dict) else None]
+    table_found: dict[str, Any] = next((t for t in found if isinstance(t, dict)), {})
+    try:  # SI numbers (run.json) or unit strings (a protocol file's [sample])
+        sample: Sample | None = parse_sample(table_found, "run.json sample")
+    except ConfigError as exc:
+        log.warning("the run's sample is not readable (%s)", exc)
+        sample = None
+    out = []
+    for key, given, default in (("r1", r1, paper.R1_SHEAR), ("r2", r2, paper.R2_SHEAR)):
+        recorded = sample.size(key) if sample is not None else None
+        if given is not None:
+            out.append(float(given))
+        elif recorded is not None:
+            out.append(recorded)
+        else:
+            log.warning("%s not given and not in run.json's sample: the paper's %g mm used "
+                        "(--%s to give it)", key, default * 1e3, key)
+            out.append(default)
+    return out[0], out[1]
+
+
+def _search_spread(steps: list[StepData], hold: StepData) -> float:
+    """The spread (m) of the last compression contact search's approaches before ``hold``:
+    the uncertainty of its first touch when the ramp cannot refit it (0 without)."""
+    spread = 0.0
+    for s in steps:
+        if s.kind == "compression_contact_search" and s.index < hold.index:
+            value = s.results.get("first_touch_spread_m")
+            spread = float(value) if isinstance(value, int | float) else 0.0
+    return spread if math.isfinite(spread) else 0.0
+
+
+def _hold(ctx: _Context, step: StepData, search_spread: float = 0.0) -> HoldAnalysis | None:
+    """Analyse a ramp_hold step and add its section; None when there is no fit to show.
+    ``search_spread`` (m): the contact search's, for the overlap warning."""
     cols = step.columns
     diameter = float(step.params.get("diameter", paper.DIAMETER_COMPRESSION))
     depth = step.results.get("depth_m")
@@ -194,8 +239,9 @@ def _hold(ctx: _Context, step: StepData) -> HoldAnalysis | None:
     if not hold.fits:
         return None
     ctx.sections.append(hold_section(hold, step.index, step.name, ctx.out, step.results,
-                                     step.params))
-    ctx.summary.extend(hold_summary(hold, step.index, step.name, step.results, step.params))
+                                     step.params, search_spread))
+    ctx.summary.extend(hold_summary(hold, step.index, step.name, step.results, step.params,
+                                    search_spread))
     return hold
 
 
@@ -224,7 +270,8 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
     travel = step.params.get("travel")
     try:
         ladder = analyse_ladder_step(step.columns, ctx.setup.arm,
-                                     None if travel is None else float(travel))
+                                     None if travel is None else float(travel),
+                                     s=ctx.setup.s)
     except ConfigError as exc:
         ctx.problems.append(f"step {step.index} ({step.name}): {exc}")
         return None
@@ -236,16 +283,24 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
     model = _model_fit(ctx, steps, step, ladder) if ctx.fit_model else None
     fit = model.fit if model else None
     levels = with_chords(ladder.levels(fit, ctx.setup.s), ctx.setup.r1, ctx.setup.r2)
+    search = next((s.results for s in steps if s.kind == "shear_contact_search"
+                   and s.index < step.index), None)
     ctx.sections.append(ladder_section(ladder, levels, model, step.index, step.name,
-                                       ctx.setup, ctx.out))
-    ctx.summary.extend(ladder_summary(ladder, levels, fit, step.index, step.name, ctx.setup))
+                                       ctx.setup, ctx.out, search))
+    ctx.summary.extend(ladder_summary(ladder, levels, fit, step.index, step.name, ctx.setup,
+                                      search))
     return analysis, fit
 
 
-def _history(steps: list[StepData], step: StepData) -> list[dict[str, FloatArray]]:
+def _history(steps: list[StepData], step: StepData, problems: list[str] | None = None
+             ) -> list[dict[str, FloatArray]]:
     """The shear steps up to and including ``step``: the motion the contact has seen. Only
-    ``step``'s passes keep their labels (they are the ones fitted)."""
-    out = []
+    ``step``'s passes keep their labels (they are the ones fitted). A step recorded after a
+    resume on a clock that started again at 0 (runs before resumes continued the run's time
+    base) is moved on to start after the step before it, and the problems say so: the model
+    integrates the motion in time order."""
+    out: list[dict[str, FloatArray]] = []
+    end = -math.inf
     for s in steps:
         if s.index > step.index or s.kind not in ("shear_contact_search", "speed_ladder"):
             continue
@@ -253,8 +308,18 @@ def _history(steps: list[StepData], step: StepData) -> list[dict[str, FloatArray
                 "direction"} <= set(s.columns):
             continue
         columns = dict(s.columns)
+        t = columns["t_s"]
+        if t.size and t[0] <= end:
+            shift = end - float(t[0]) + 1.0
+            columns["t_s"] = t + shift
+            if problems is not None:
+                problems.append(f"step {s.index} ({s.name}): its times start before the step "
+                                f"before it ended (a resume that restarted the clock); moved "
+                                f"on by {shift:.1f} s for the model fit")
         if s.index != step.index:
-            columns["pass"] = np.full(columns["t_s"].size, -1.0)
+            columns["pass"] = np.full(t.size, -1.0)
+        if t.size:
+            end = float(columns["t_s"][-1])
         out.append(columns)
     return out
 
@@ -268,7 +333,8 @@ def _model_fit(ctx: _Context, steps: list[StepData], step: StepData,
                             "angle (no contact search result and none in the ladder's parameters)")
         return None
     try:
-        model = fit_ladder_model(ladder, _history(steps, step), ctx.setup, touch, angle)
+        model = fit_ladder_model(ladder, _history(steps, step, ctx.problems), ctx.setup, touch,
+                                 angle)
     except (ConfigError, ValueError, np.linalg.LinAlgError) as exc:
         ctx.problems.append(f"step {step.index}: model fit failed ({exc})")
         return None
@@ -293,8 +359,8 @@ def analyze_run(
     run_dir: str | Path,
     out_dir: str | Path | None = None,
     *,
-    r1: float = paper.R1_SHEAR,
-    r2: float = paper.R2_SHEAR,
+    r1: float | None = None,
+    r2: float | None = None,
     terms: int = 1,
     fit_model: bool = True,
     fit_geometry: bool = True,
@@ -304,7 +370,8 @@ def analyze_run(
     """Analyse every complete part of a run directory and write the report.
 
     ``out_dir`` defaults to ``RUN_DIR/analysis``. ``r1``, ``r2`` (m) are the shear rig's
-    sphere radii (not stored with a run); ``terms`` is the number of relaxation terms of the
+    sphere radii (default: the run's sample in run.json, else the paper's, said in the
+    problems); ``terms`` is the number of relaxation terms of the
     shear model fit, ``unloading`` its unloading model (``cutoff`` or ``mdr``) and
     ``anisotropic`` whether F_h and F_v get separate G_i (the paper's anisotropy). Raises
     ConfigError when there is nothing at all to analyse (or an option is not allowed).
@@ -312,11 +379,19 @@ def analyze_run(
     run = RunDirectory(run_dir)
     meta = run.read_metadata()
     out = Path(out_dir) if out_dir is not None else run.path / "analysis"
+    check_path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "is a file, not a folder; name a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", str(out), f"cannot be created ({exc.strerror})") from None
     problems: list[str] = []
     steps = load_steps(run, meta, problems)
+    if any(s.kind == "speed_ladder" for s in steps):
+        r1, r2 = _radii(meta, r1, r2)
+    r1 = paper.R1_SHEAR if r1 is None else r1
+    r2 = paper.R2_SHEAR if r2 is None else r2
     head = (meta.get("protocol") or {}).get("protocol")
     kind = str(head.get("rig", "?")) if isinstance(head, dict) else "?"
     arm = _arm(meta, problems) if any(s.kind == "speed_ladder" for s in steps) else paper.ARM
@@ -326,7 +401,7 @@ def analyze_run(
     result = AnalysisResult(run.path, out, out / "report.html", "", problems)
     for step in steps:
         if step.kind == "ramp_hold":
-            hold = _hold(ctx, step)
+            hold = _hold(ctx, step, _search_spread(steps, step))
             if hold is not None:
                 result.holds[step.index] = hold
                 result.hold_fits[step.index] = list(hold.fits)

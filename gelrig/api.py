@@ -26,18 +26,19 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from instrument.clock import Clock
-from instrument.errors import ConfigError, InterlockTripped
-from instrument.store import RunDirectory
-from protocols.control import RunControl
-from protocols.events import Event, EventBus
-from protocols.guard import Guarded, guarded
-from protocols.procedure import Procedure
-from protocols.rehearsal import RehearsalReport
-from protocols.rig import CompressionRig, Rig, ShearRig
-from protocols.rigfile import RigSpec, default_rig, load_rig
-from protocols.safestop import SafeState
-from protocols.script import load_procedure
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import ConfigError, InterlockTripped, Refused
+from gelrig.instrument.core.store import RunDirectory, check_out_dir
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import Event, EventBus
+from gelrig.protocols.manual_motion import Guarded, approach_speed, guarded, still_loaded
+from gelrig.protocols.procedure import Procedure
+from gelrig.protocols.rehearsal import RehearsalReport
+from gelrig.protocols.resolve import make_clock, resolve_procedure, resolve_rig
+from gelrig.protocols.rig import CompressionRig, Rig, ShearRig
+from gelrig.protocols.rigfile import RigSpec
+from gelrig.protocols.safestop import SafeState
+from gelrig.protocols.sample import SampleRef
 
 log = logging.getLogger(__name__)
 
@@ -70,15 +71,6 @@ class RunResult:
                        f"{', '.join(str(s.get('name')) for s in self.steps)}")
 
 
-def _rig_spec(rig: str | os.PathLike[str] | RigSpec) -> RigSpec:
-    if not isinstance(rig, str | os.PathLike):
-        return rig
-    name = os.fspath(rig)
-    if name in ("compression", "shear"):
-        return load_rig(default_rig(name))
-    return load_rig(name)
-
-
 class RigSession:
     """An open rig: its instruments (through their contracts, under the rig file's caps),
     its clock, and runs recorded on it. Use as a context manager (:func:`open_rig`)."""
@@ -101,27 +93,61 @@ class RigSession:
     # -- runs ------------------------------------------------------------------------------
     def run(self, protocol: Procedure | str | os.PathLike[str], out: str | os.PathLike[str]
             | None = None, *, show: bool = False,
-            subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
-        """Run a protocol (a :class:`~protocols.script.Script`, a protocol file, a script
+            subscribers: Iterable[Callable[[Event], None]] = (),
+            sample: SampleRef | None = None,
+            params: Mapping[str, Any] | None = None) -> RunResult:
+        """Run a protocol (a :class:`~gelrig.protocols.script.Script`, a protocol file, a script
         file, ``"paper:compression"``) into a new run directory ``out`` (default
         ``runs/<time>-<rig>``) and return how it ended. ``show`` prints the CLI's progress;
         ``subscribers`` get every event of the run (the same stream the CLI and GUI use).
-        A run that ends short (abort, trip, fault, a script's error) has stopped all motion
-        first; its state says so, nothing is raised (Ctrl-C is re-raised after the stop)."""
-        from gelrig.session import default_run_dir, new_run
+        A run that ends short (abort, trip, fault, the watchdog, a script's error, a run
+        stuck in an instrument call or in the script's own code and ended from outside) has
+        stopped all motion first; its state ("aborted" or "failed") and reason say so, and
+        nothing is raised. Ctrl-C aborts the run: motion is stopped and the end recorded,
+        then KeyboardInterrupt is raised (a second Ctrl-C ends a stuck run at once). Bad
+        input (a protocol for the other rig kind, an ``out`` that is a file) raises
+        ConfigError before anything is made. A step the rig's caps or the run's bounds
+        refuse (a speed above ``max_velocity``, an overlap beyond the limit) raises
+        :class:`~gelrig.instrument.core.errors.Refused` (a ConfigError; its text is the one
+        line) and leaves no run folder when nothing of the run had moved: a protocol file's
+        steps are checked before the folder is made, a script's as it sends each; one
+        refused after earlier steps moved ends the run ``"refused"``, its data kept.
+        ``sample``: the sample on the rig (a :class:`~gelrig.protocols.sample.Sample`, a
+        table such as ``{"name": "A3", "diameter": "12 mm"}``, or a sample file), replacing a
+        protocol file's ``[sample]``: a step that needs a size (``ramp_hold``'s diameter)
+        takes it from there, and one that has none raises ConfigError naming the field
+        before anything is made. ``params``: a script's parameters (a missing or unknown one
+        is a ConfigError)."""
+        from gelrig.protocols.host import (
+            create_run,
+            default_run_dir,
+            discard_run,
+            new_folders,
+            preflight,
+        )
 
-        procedure = _procedure(protocol)
+        procedure = resolve_procedure(protocol, params, sample=sample)
         self._check_kind(procedure)
         path = Path(out) if out is not None else default_run_dir(procedure)
-        run = new_run(procedure, self.spec, self.clock_spec, path)
-        with run.lock():
-            return self._execute(procedure, run, None, show, subscribers)
+        check_out_dir(path)
+        refused = preflight(self.rig, procedure)
+        if refused:
+            raise Refused(f"{refused[0]}; refused before anything moves", procedure.source)
+        made = new_folders(path)
+        run = create_run(procedure, self.spec, self.clock_spec, path)
+        result, problem = self._execute(procedure, run, None, show, subscribers)
+        if problem:
+            discard_run(run, made)
+            raise Refused(f"{problem}; refused before anything moves", procedure.source)
+        return result
 
     def resume(self, run_dir: str | os.PathLike[str], *, show: bool = False,
                subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
         """Continue a run that ended short from its last completed step, on this rig (the
-        run's protocol, or its script run again with completed steps replayed)."""
-        from gelrig.session import prepare_resume, resumable
+        run's protocol, or its script run again with completed steps replayed). A step the
+        rig refuses before anything of this attempt moved raises
+        :class:`~gelrig.instrument.core.errors.Refused`; the run folder stays as it was."""
+        from gelrig.protocols.host import preflight, prepare_resume, resumable
 
         run = RunDirectory(os.fspath(run_dir))
         if run.read_metadata().get("status") == "completed":
@@ -131,8 +157,16 @@ class RigSession:
             log.warning("%s", note)
         self._check_kind(procedure)
         with run.lock():
-            completed, _ = prepare_resume(run, meta, self.clock_spec)
-            return self._execute(procedure, run, completed, show, subscribers)
+            done = {i: s.get("results") or {} for i, s in run.completed_steps().items()}
+            refused = preflight(self.rig, procedure, done)
+            if refused:
+                raise Refused(f"{refused[0]}; refused before anything moves", procedure.source)
+            completed, _ = prepare_resume(run, meta, self.clock_spec, self.clock)
+            result, problem = self._execute(procedure, run, completed, show, subscribers,
+                                            lock=False)
+        if problem:
+            raise Refused(f"{problem}; refused before anything moves", procedure.source)
+        return result
 
     def _check_kind(self, procedure: Procedure) -> None:
         if procedure.rig != self.kind:
@@ -141,16 +175,27 @@ class RigSession:
 
     def _execute(self, procedure: Procedure, run: RunDirectory,
                  completed: Mapping[int, Mapping[str, Any]] | None, show: bool,
-                 subscribers: Iterable[Callable[[Event], None]]) -> RunResult:
-        from gelrig.session import execute
+                 subscribers: Iterable[Callable[[Event], None]], lock: bool = True
+                 ) -> tuple[RunResult, str]:
+        """Host the run; returns how it ended and, for a run refused before any of its steps
+        started, the refusal's line ('' otherwise)."""
+        from gelrig.protocols.host import RunHost, refused_unmoved
+        from gelrig.terminal import run_in_terminal
 
         bus = EventBus()
         for subscriber in subscribers:
             bus.subscribe(subscriber)
-        self.rig.end_monitoring()
-        execute(procedure, self.spec, self.clock, run, completed, show=show, bus=bus,
-                control=RunControl(), exit=lambda code: None, rig=self.rig)
-        return _result(run)
+        with RunHost(self.rig, procedure, run, completed=completed, bus=bus,
+                     lock=lock) as host:
+            try:
+                run_in_terminal(host, show=show, exit=lambda code: None, ctrl_c="raise")
+            except Exception as exc:  # the run's thread raised after its end: it ended
+                log.error("the run's thread ended with %s: %s", type(exc).__name__, exc,
+                          exc_info=exc)
+                if host.state.finished:
+                    return _result(run), ""
+                run.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
+        return _result(run), refused_unmoved(host)
 
     # -- manual motions, under the interlocks ------------------------------------------------
     def home(self) -> Guarded:
@@ -159,13 +204,17 @@ class RigSession:
         return self._guard("home", rig.home, toward=False)
 
     def move_plate(self, speed: float, to: float | None = None,
-                   by: float | None = None) -> Guarded:
+                   by: float | None = None, confirm: bool = False) -> Guarded:
         """Move the plate to ``to`` or ``by`` a distance (m) at ``speed`` (m/s), watched under
         the rig's interlocks like a protocol step (a trip stops it within one sample and
-        raises :class:`InterlockTripped`); refused before homing (:class:`NotHomed`)."""
+        raises :class:`InterlockTripped`); refused before homing (:class:`NotHomed`). Toward
+        the sample before a contact search (first touch unknown: the overlap limit is not
+        armed) it is refused (:class:`FirstTouchUnknown`) unless ``confirm``, and then goes
+        at most the safe approach speed (:data:`APPROACH_SPEED`)."""
         rig = self._compression()
         if (to is None) == (by is None):
             raise ConfigError("move_plate", f"to={to}, by={by}", "give exactly one of to, by")
+        speed = approach_speed(rig, speed, to, by, confirm)
         return self._guard("move the plate", lambda: rig.move_plate(speed, to, by),
                            toward=rig.toward(to, by))
 
@@ -204,21 +253,21 @@ class RigSession:
     # -- the way out ------------------------------------------------------------------------
     def safe_stop(self, reason: str = "script ended") -> SafeState:
         """Stop every motion, read it back, and put the sample in the rig's safe state
-        (retract the plate, lift the arm); returns what was verified."""
-        return self.rig.safe_stop(reason, SAFE_STOP_BUDGET)
+        (retract the plate, lift the arm); returns what was verified. Safe means the stop
+        verified and the load read back below the loaded level: with the sample still
+        loaded the state is not verified and its line says what is loaded."""
+        return still_loaded(self.rig, self.rig.safe_stop(reason, SAFE_STOP_BUDGET),
+                            self.readings)
 
     def close(self) -> None:
         """Stop all motion and release the instruments (and their simulators)."""
         if self._closed:
             return
         self._closed = True
-        from gelrig.session import CLOSE_TIMEOUT
-        from protocols.safestop import bounded
+        from gelrig.protocols.host import closing_rig
 
-        try:
-            bounded(self.rig.close, CLOSE_TIMEOUT, "closing the rig")
-        except Exception as exc:
-            log.error("closing the rig: %s", exc, exc_info=True)
+        with closing_rig(self.rig):
+            pass
 
     def __enter__(self) -> RigSession:
         return self
@@ -253,12 +302,6 @@ class RigSession:
               f"{safe.line()}", file=sys.stderr)
 
 
-def _procedure(protocol: Procedure | str | os.PathLike[str]) -> Procedure:
-    if isinstance(protocol, str | os.PathLike):
-        return load_procedure(os.fspath(protocol))
-    return protocol
-
-
 def _result(run: RunDirectory) -> RunResult:
     meta = run.read_metadata()
     return RunResult(str(meta.get("status", "?")), str(meta.get("reason") or ""), run.path,
@@ -272,22 +315,23 @@ def open_rig(rig: str | os.PathLike[str] | RigSpec = "compression",
     rig), ``"real"`` (default otherwise), ``"paced:K"``, or a Clock. Use it as a context
     manager: leaving the block stops everything, and by an error or Ctrl-C first puts the
     sample in its safe state."""
-    from gelrig.session import make_clock
-
-    spec = _rig_spec(rig)
+    spec = resolve_rig(rig)
     made, text = make_clock(clock, spec)
     return RigSession(spec, made, text)
 
 
 def rehearse(protocol: Procedure | str | os.PathLike[str],
-             rig: str | os.PathLike[str] | RigSpec | None = None) -> RehearsalReport:
+             rig: str | os.PathLike[str] | RigSpec | None = None, *,
+             sample: SampleRef | None = None,
+             params: Mapping[str, Any] | None = None) -> RehearsalReport:
     """What ``gelrig plan`` measures: the protocol (or script) run in virtual time on the
-    rig's twin (every instrument simulated under the same limits), counted, not recorded."""
+    rig's twin (every instrument simulated under the same limits), counted, not recorded;
+    ``sample`` and ``params`` as for :meth:`RigSession.run`."""
     from gelrig.factory import build_twin
-    from protocols.rehearsal import rehearse as rehearse_on
+    from gelrig.protocols.rehearsal import rehearse as rehearse_on
 
-    procedure = _procedure(protocol)
-    spec = _rig_spec(rig if rig is not None else procedure.rig)
+    procedure = resolve_procedure(protocol, params, sample=sample)
+    spec = resolve_rig(rig, procedure)
     twin = build_twin(spec)
     try:
         return rehearse_on(twin, procedure)
@@ -316,20 +360,20 @@ def script_main(argv: list[str] | None = None) -> int:
 def load_protocol(reference: str | os.PathLike[str]) -> Procedure:
     """A protocol file, a script file (``.py``) or ``"paper:compression"`` /
     ``"paper:shear"``, loaded and validated (nothing runs)."""
-    return load_procedure(os.fspath(reference))
+    return resolve_procedure(reference, check=False)
 
 
 def register_step(definition: Any) -> Any:
     """Class decorator: make a :class:`StepDefinition` subclass nameable by its ``kind`` from
     scripts (``run.step("creep", ...)``) and from protocol files that list its module in
     ``[protocol] step_kinds``."""
-    from protocols.steps import register
+    from gelrig.protocols.steps import register
 
     return register(definition)
 
 
 def step_kinds() -> dict[str, str]:
     """Every step kind a protocol can name now (built-in and registered): kind -> rig."""
-    from protocols.steps import KINDS
+    from gelrig.protocols.steps import KINDS
 
     return {kind: d.rig_kind for kind, d in KINDS.items()}

@@ -10,14 +10,20 @@ needs when it runs, so ``gelrig --help`` answers at once.
 from __future__ import annotations
 
 import argparse
+import errno
 import functools
 import importlib
 import os
 import sys
 from collections.abc import Callable, Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
-from instrument.errors import ConfigError, GelrigError
+from gelrig.instrument.core.errors import ConfigError, GelrigError
+
+# gRPC's core (the DAQ link) logs at INFO to stderr unless told otherwise, e.g. "Got goaway"
+# when the DAQ server closes first: stderr holds gelrig's one line and nothing else. Set
+# before grpc is imported (a command imports it when it runs); an explicit setting wins.
+os.environ.setdefault("GRPC_VERBOSITY", "ERROR")
 
 
 class UsageError(GelrigError):
@@ -31,11 +37,41 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: error: {message}")
 
 
+class LazyParser(Parser):
+    """A subcommand's parser whose options are added (by ``populate``) when it is first used,
+    to parse or to show its help: building the whole command line then imports nothing that
+    only this subcommand needs (``gelrig sim serve``'s options come from the simulators'
+    configurations)."""
+
+    def __init__(self, *args: Any,
+                 populate: Callable[[argparse.ArgumentParser], None] | None = None,
+                 **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._populate = populate
+
+    def _ready(self) -> None:
+        if self._populate is not None:
+            populate, self._populate = self._populate, None
+            populate(self)
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        self._ready()
+        return super().parse_known_args(args, namespace)
+
+    def format_usage(self) -> str:
+        self._ready()
+        return super().format_usage()
+
+    def format_help(self) -> str:
+        self._ready()
+        return super().format_help()
+
+
 Handler = Callable[[argparse.Namespace], int]
 
 
 def build_parser() -> Parser:
-    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run
+    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run, validate
 
     parser = Parser(prog="gelrig", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -48,22 +84,23 @@ def build_parser() -> Parser:
     analyze.register(sub)
     gui.register(sub)
     campaign.register(sub)
+    validate.register(sub)
     _register_sim(sub)
     return parser
 
 
 def _register_sim(sub: argparse._SubParsersAction) -> None:
-    from simulators.serve_options import SERVED
+    from gelrig.simulators.serve_options import SERVED
 
     sim = sub.add_parser("sim", help="simulated instruments")
     sim_sub = sim.add_subparsers(dest="sim_command", parser_class=Parser, metavar="ACTION")
     sim_sub.required = True
     serve = sim_sub.add_parser("serve", help="serve a simulated instrument on its wire protocol")
-    which = serve.add_subparsers(dest="instrument", parser_class=Parser, metavar="INSTRUMENT")
+    which = serve.add_subparsers(dest="instrument", parser_class=LazyParser,
+                                 metavar="INSTRUMENT")
     which.required = True
     for name, served in SERVED.items():
-        p = which.add_parser(name, help=served.summary)
-        served.add_arguments(p)
+        p = which.add_parser(name, help=served.summary, populate=served.add_arguments)
         p.set_defaults(handler=functools.partial(_serve, served.module))
 
 
@@ -111,6 +148,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except OSError as exc:  # a path no check foresaw: still one line, exit 2
+        if debug or exc.errno != errno.ENAMETOOLONG:
+            raise
+        print(f"gelrig: error: {str(exc.filename)[:60]}...: a name or path longer than the "
+              "file system allows", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -1,5 +1,10 @@
 """Terminal face of a run: a rich progress bar with lab-time ETA and live values, as an
-event subscriber, and the lines a scientist wants to see when states change."""
+event subscriber, and the lines a scientist wants to see when states change.
+
+Text is text: every string that reaches the console (step names, reasons, exception texts,
+rig and protocol values echoed back, paths) is rendered as a :class:`rich.text.Text` or with
+markup off, never parsed as rich markup, so ``[/x] hold`` or ``[limits] max_force`` shows as
+written and cannot break the display."""
 
 from __future__ import annotations
 
@@ -9,9 +14,10 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn
+from rich.text import Text
 
-from instrument.units import lab_time
-from protocols.events import (
+from gelrig.instrument.core.units import lab_time
+from gelrig.protocols.events import (
     Event,
     Fault,
     FitUpdate,
@@ -21,7 +27,7 @@ from protocols.events import (
     StepFinished,
     StepStarted,
 )
-from protocols.events import (
+from gelrig.protocols.events import (
     Progress as ProgressEvent,
 )
 
@@ -31,6 +37,8 @@ def fit_line(event: FitUpdate) -> str:
     st = event.state
     if not st.relax:
         return ""
+    if st.terms_resolved < 1:
+        return f"fit not resolved: {st.not_resolved or 'no term resolved yet'}"
     rel = st.tau_relative
     shown = f"{rel * 100:.2g} %" if math.isfinite(rel) else "undetermined"
     end = st.forecast.get("tau_1", math.nan)
@@ -66,13 +74,14 @@ class ConsoleView:
     def __init__(self, console: Console | None = None, log_path: Path | None = None):
         self.console = console or Console(stderr=True)
         self.log_path = log_path
-        self._headline = ""  # the trip or fault waiting for its safe state
+        self._headline: Text | None = None  # the trip or fault waiting for its safe state
         self._closed = False
         self.progress = Progress(
-            TextColumn("[bold]{task.description}"), BarColumn(),
-            TextColumn("{task.percentage:>5.1f}%"), TextColumn("ETA {task.fields[eta]}"),
-            TextColumn("{task.fields[live]}"), console=self.console, transient=False,
-            auto_refresh=False,
+            TextColumn("{task.description}", style="bold", markup=False), BarColumn(),
+            TextColumn("{task.percentage:>5.1f}%"),
+            TextColumn("ETA {task.fields[eta]}", markup=False),
+            TextColumn("{task.fields[live]}", markup=False), console=self.console,
+            transient=False, auto_refresh=False,
         )
         self._task: TaskID | None = None
         self._fit = ""  # the live fit's line during a hold
@@ -90,15 +99,18 @@ class ConsoleView:
         self._closed = True
         if self._lock.acquire(timeout=1.0):
             try:
-                self.progress.stop()
+                if self.progress.tasks:
+                    self.progress.stop()
+                else:  # no step started: no empty line (Progress.stop prints one to a file)
+                    self.progress.live.stop()
             finally:
                 self._lock.release()
 
     def say(self, text: str) -> None:
-        """Print a line from any thread."""
+        """Print a line from any thread (as written: no markup, no emoji codes)."""
         if self._lock.acquire(timeout=1.0):
             try:
-                self.console.print(text)
+                self.console.print(Text(text), soft_wrap=True)
             finally:
                 self._lock.release()
 
@@ -129,24 +141,37 @@ class ConsoleView:
             end = event.results.get("hold_end") if isinstance(event.results, dict) else None
             if end in ("target", "maximum"):
                 what = "target met" if end == "target" else "target not met: the maximum"
-                self.console.print(f"[{lab_time(event.t)}] step {event.index}: adaptive hold "
-                                   f"ended after {event.results.get('held_s', 0):.0f} s "
-                                   f"({what})", highlight=False)
+                self.console.print(Text(f"[{lab_time(event.t)}] step {event.index}: adaptive "
+                                        f"hold ended after {event.results.get('held_s', 0):.0f}"
+                                        f" s ({what})"))
             if self._task is not None:
                 done = event.status == "completed"
                 self.progress.update(self._task, completed=1.0 if done else None, eta="-",
                                      live=event.status)
             self._task = None
         elif isinstance(event, StateChanged) and event.reason and not event.new.finished:
-            self.console.print(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}")
+            self.console.print(Text(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}"),
+                               soft_wrap=True)
         elif isinstance(event, InterlockTrip):
-            self._headline = f"[bold red]INTERLOCK[/] {event.message}"
+            self._headline = Text.assemble(("INTERLOCK", "bold red"), f" {event.message}")
         elif isinstance(event, Fault):
-            self._headline = f"[bold red]FAULT[/] {event.kind}: {event.message}"
+            self._headline = fault_headline(event)
         elif isinstance(event, SafeStopped):
-            head = self._headline or f"[bold yellow]ABORTED[/] {event.state.reason}"
-            self._headline = ""
-            safe = event.state.line()
-            safe = safe if event.state.verified else f"[bold red]{safe}[/]"
-            where = f"; details: {self.log_path}" if self.log_path else ""
-            self.console.print(f"{head}; {safe}{where}", highlight=False, soft_wrap=True)
+            self.console.print(self._end_line(event), soft_wrap=True)
+
+    def _end_line(self, event: SafeStopped) -> Text:
+        """The one line of a run that ended short: what happened (the trip or fault waiting,
+        else the abort), what the safe stop verified, where the details are."""
+        head = self._headline or Text.assemble(("ABORTED", "bold yellow"),
+                                               f" {event.state.reason}")
+        self._headline = None
+        safe = event.state.line()
+        where = f"; details: {self.log_path}" if self.log_path else ""
+        return Text.assemble(head, "; ", (safe, "" if event.state.verified else "bold red"),
+                             where)
+
+
+def fault_headline(event: Fault) -> Text:
+    """``FAULT kind: message``, the message as written (it may be a script's exception text
+    with brackets in it, or a cap's ``[limits]`` table)."""
+    return Text.assemble(("FAULT", "bold red"), f" {event.kind}: {event.message}")

@@ -13,13 +13,12 @@ import logging
 from collections.abc import Callable
 from typing import TypeVar
 
-from drivers.mcr501.driver import MCR501
-from instrument.clock import Clock
-from instrument.contact import FloatArray
-from instrument.errors import ConfigError, InstrumentError
-from instrument.identity import Identity
-from protocols.rig import CompressionRig, Rig, ShearRig
-from protocols.rigfile import CompressionRigSpec, Connection, RigSpec, ShearRigSpec
+from gelrig.drivers.mcr501.driver import MCR501
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import ConfigError, InstrumentError
+from gelrig.instrument.core.identity import Identity
+from gelrig.protocols.rig import CompressionRig, Rig, ShearRig
+from gelrig.protocols.rigfile import CompressionRigSpec, Connection, RigSpec, ShearRigSpec
 
 T = TypeVar("T")
 
@@ -51,7 +50,7 @@ def twin_spec(spec: RigSpec) -> RigSpec:
 
 def build_twin(spec: RigSpec) -> Rig:
     """The rig's twin on a fresh virtual clock: what ``gelrig plan`` rehearses on."""
-    from instrument.clock import VirtualClock
+    from gelrig.instrument.core.clock import VirtualClock
 
     return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
 
@@ -84,22 +83,15 @@ def _close_all(closers: list[Callable[[], None]]) -> None:
 
 
 def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
-    from simulators.mcr501.config import PAPER_MATERIAL, SimConfig
-    from simulators.mcr501.instrument import MCR501Simulator
-    from simulators.mcr501.link import DirectLink
-    from simulators.mcr501.server import SimulatorServer
+    from gelrig.simulators.mcr501.link import DirectLink
+    from gelrig.simulators.mcr501.server import SimulatorServer
+    from gelrig.simulators.twins.shear import shear_simulator
 
     entry, truth = spec.rheometer, spec.simulator
     closers: list[Callable[[], None]] = []
     try:
         if entry.simulated:
-            sim = MCR501Simulator(clock, SimConfig(
-                r1=truth.r1, r2=truth.r2, mu=truth.mu, lower_angle=truth.lower_angle,
-                touch_gap=truth.touch_gap, seed=int(truth.seed), arm=entry.config.arm,
-                material=truth.material or PAPER_MATERIAL,
-                material_vertical=truth.material_vertical, unloading=truth.unloading,
-                carry_history=truth.carry_history, torque_noise=truth.torque_noise,
-                normal_force_noise=truth.normal_force_noise))
+            sim = shear_simulator(clock, truth, entry.config)
             if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"
@@ -125,22 +117,27 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
 
 def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = False
                  ) -> CompressionRig:
-    from drivers.kdc101 import KDC101
-    from drivers.usb6001.sensor import Usb6001ForceSensor
-    from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
-    from simulators.usb6001.rig import PLATES, SIM_OFFSET, compression_daq
-    from simulators.usb6001.server import start_server
+    from gelrig.drivers.kdc101 import KDC101
+    from gelrig.drivers.usb6001.sensor import Usb6001ForceSensor
+    from gelrig.simulators.kdc101 import register, unregister
+    from gelrig.simulators.twins.compression import CompressionTwin
+    from gelrig.simulators.usb6001.server import start_server
 
     stage_entry, force_entry = spec.stage, spec.force
     chain = force_entry.chain
     closers: list[Callable[[], None]] = []
     identities: dict[str, object] = {}
     try:
-        if stage_entry.simulated:
-            # The simulated controller follows the rig's direction convention (ADR 0100).
-            stage_sim = KDC101Simulator(clock, SimConfig(direction=stage_entry.config.direction))
-            name = f"gelrig-{id(stage_sim):x}"
-            address = register(stage_sim, name)
+        if force_entry.simulated and not stage_entry.simulated:
+            raise ConfigError("force.transport", "simulator", "a simulated force needs "
+                              "the simulated stage (its plate drives the contact)", spec.source)
+        # The simulated instruments, coupled by the twin (the stage follows the rig's
+        # direction convention, ADR 0100; its plate drives the contact the load cell reads).
+        twin = (CompressionTwin.build(clock, spec.simulator, stage_entry.config, chain,
+                                      force_entry.config) if stage_entry.simulated else None)
+        if twin is not None:
+            name = f"gelrig-{id(twin.stage):x}"
+            address = register(twin.stage, name)
             closers.append(lambda: unregister(name))
         else:
             address = stage_entry.address
@@ -151,25 +148,12 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
                             lambda: (stage.open(), stage.identify())[1])
         identities["stage"] = _record(identity, stage_entry.transport, address)
         if force_entry.simulated:
-            if not stage_entry.simulated:
-                raise ConfigError("force.transport", "simulator", "a simulated force needs "
-                                  "the simulated stage (its plate drives the contact)", spec.source)
-            truth = spec.simulator
-            home = stage_sim.config.home_offset_m
-
-            def plate(ts: FloatArray) -> FloatArray:  # homed stage frame, fixed physically
-                return stage_sim.positions_at(ts) - home
-
-            device = compression_daq(
-                clock, plate, first_touch=truth.first_touch, vectorized=True,
-                sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
-                chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
-                noise_rms=truth.noise * chain.sensitivity, material=truth.material or PLATES,
-                unloading=truth.unloading)
+            assert twin is not None
+            device = twin.force
             if in_process:
                 import nidaqmx
 
-                from simulators.usb6001.inprocess import InProcessChannel
+                from gelrig.simulators.usb6001.inprocess import InProcessChannel
 
                 force_address = "in-process"
                 options: str | nidaqmx.GrpcSessionOptions = nidaqmx.GrpcSessionOptions(

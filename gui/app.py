@@ -6,9 +6,9 @@ import sys
 
 from PySide6.QtWidgets import QApplication
 
-from gui.binding import check_binding
-from gui.mainwindow import MainWindow
-from gui.services import Services
+from gelrig.gui.binding import check_binding
+from gelrig.gui.mainwindow import MainWindow
+from gelrig.gui.services import Services
 
 
 def run_app(services: Services, argv: list[str] | None = None) -> int:

@@ -15,7 +15,7 @@ import sys
 import PySide6
 from PySide6.QtCore import QObject, Signal
 
-from instrument.errors import GelrigError
+from gelrig.instrument.core.errors import GelrigError
 
 _CALLS = 200
 

@@ -12,8 +12,8 @@ import threading
 
 from PySide6.QtCore import QObject, Signal
 
-from gui.rundata import RunData
-from protocols.events import Event, Progress, Samples, StepFinished, StepStarted
+from gelrig.gui.rundata import RunData
+from gelrig.protocols.events import Event, Progress, Samples, StepFinished, StepStarted
 
 
 class EventBridge(QObject):

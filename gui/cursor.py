@@ -6,7 +6,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QObject, QPointF, Qt
 from PySide6.QtWidgets import QLabel
 
-from gui.fmt import quantity
+from gelrig.gui.fmt import quantity
 
 
 class Crosshair(QObject):

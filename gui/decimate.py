@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from instrument.contact import FloatArray
+from gelrig.instrument.physics.contact import FloatArray
 
 
 class PeakDecimator:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gui.rundata import KEPT, RunData
+from gelrig.gui.rundata import KEPT, RunData
 
 #: Rows written per block (bounded memory for a 3e6-sample hold).
 BLOCK = 100_000

@@ -1,7 +1,7 @@
 """The live relaxation fit of a hold, in the GUI: G(t) with the running fit and its band, and
 the fit's history (tau and its relative uncertainty against hold time).
 
-Fed by :class:`protocols.events.FitUpdate` events (a few dozen a hold); each redraws at once
+Fed by :class:`gelrig.protocols.events.FitUpdate` events (a few dozen a hold); each redraws at once
 (a few hundred points). Time runs from the hold's start.
 """
 
@@ -14,8 +14,8 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QGridLayout, QLabel, QWidget
 
-from gui.plots import colour
-from protocols.events import FitUpdate, StepStarted
+from gelrig.gui.plots import colour, time_plot
+from gelrig.protocols.events import FitUpdate, StepStarted
 
 #: Band drawn around the fitted curve, in standard deviations (about 95 %).
 BAND = 2.0
@@ -45,20 +45,19 @@ class FitPanel(QWidget):
         super().__init__(parent)
         grid = QGridLayout(self)
         grid.setContentsMargins(0, 0, 0, 0)
-        self.g_plot = pg.PlotWidget(title="G(t) during the hold, live fit and 2 s.d. band")
-        self.g_plot.setLabel("bottom", "hold time", units="s")
+        # hold time in s, min or h by the span shown (never ks)
+        self.g_plot = time_plot("G(t) during the hold, live fit and 2 s.d. band", "hold time")
         self.g_plot.setLabel("left", "G", units="Pa")
-        self.tau_plot = pg.PlotWidget(title="Live fit history: tau (left), relative s.e. "
-                                            "(right, %)")
-        self.tau_plot.setLabel("bottom", "hold time", units="s")
-        self.tau_plot.setLabel("left", "tau", units="s")
-        self.rel_plot = pg.PlotWidget()
-        self.rel_plot.setLabel("bottom", "hold time", units="s")
+        self.tau_plot = time_plot("Live fit history: tau (left), relative s.e. (right, %)",
+                                  "hold time")
+        self.tau_plot.setLabel("left", "tau (s)")
+        self.rel_plot = time_plot(None, "hold time")
         self.rel_plot.setLabel("left", "relative s.e. of tau (%)")
         self.rel_plot.setLogMode(y=True)
         for plot in (self.g_plot, self.tau_plot, self.rel_plot):
             plot.showGrid(x=True, y=True, alpha=0.3)
             plot.setMinimumSize(120, 90)
+        self.tau_plot.getPlotItem().getAxis("left").enableAutoSIPrefix(False)
         self.line = QLabel("no hold yet: the live fit starts once a ramp_hold holds")
         self.line.setObjectName("liveFitLine")
         self.line.setWordWrap(True)

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QResizeEvent
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QPushButton, QSizePolicy, QWidget
 
-from gui.fmt import quantity
+from gelrig.gui.fmt import quantity
+from gelrig.gui.safety import GREY, Safety
 
 #: The values shown in the strip, in order: key, label, SI unit.
 LIVE: tuple[tuple[str, str, str], ...] = (
@@ -59,5 +62,50 @@ class Header(QWidget):
         self.stop_button.setToolTip("stop all motion now (aborts a run) — Esc")
         row.addWidget(self.stop_button)
 
+        self.stale = QLabel("")
+        self.stale.setObjectName("staleReadout")
+        self.stale.setStyleSheet(GREY)
+        self.stale.setToolTip("values of an instrument that stopped answering, with their age")
+        row.insertWidget(2, self.stale)
+
     def show_live(self, values: Mapping[str, float]) -> None:
         self.readout.setText(live_text(values))
+
+    def show_safety(self, safety: Safety) -> None:
+        """Fresh values as they are; an instrument's values that are not fresh greyed, with
+        their age; nothing without a rig."""
+        if not safety.connected:
+            self.readout.setText("")
+            self.stale.setText("")
+            return
+        fresh, stale = safety.live(LIVE)
+        self.readout.setText(fresh.replace(", ", "   "))
+        self.stale.setText(stale.replace(", ", "   "))
+
+
+class StatusLine(QLabel):
+    """A one-line status that never widens its window: shown elided ("…") at the width it
+    is given, the whole line in ``full`` and in its tooltip. Its size never depends on its
+    text, so setting the text on a resize cannot feed back into the layout."""
+
+    def __init__(self, tip: str, parent: QWidget | None = None):
+        super().__init__("", parent)
+        self.full, self.tip = "", tip
+        self.setMinimumWidth(0)
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.setToolTip(tip)
+
+    def set_line(self, line: str) -> None:
+        self.full = line
+        self.setToolTip(f"{line}\n({self.tip})" if line else self.tip)
+        self._elide()
+
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 (Qt override)
+        super().resizeEvent(event)
+        self._elide()
+
+    def _elide(self) -> None:
+        shown = self.fontMetrics().elidedText(self.full, Qt.TextElideMode.ElideRight,
+                                              max(self.width(), 1))
+        if shown != self.text():
+            self.setText(shown)

@@ -17,9 +17,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gui.fmt import quantity
-from protocols.rig import Rig
-from protocols.rigfile import RigSpec
+from gelrig.gui.fmt import quantity
+from gelrig.gui.safety import GREY, NAMES, Safety, ago
+from gelrig.protocols.rig import Rig
+from gelrig.protocols.rigfile import RigSpec
 
 #: instrument -> (reading key, label, SI unit) shown live.
 READOUTS: dict[str, tuple[tuple[str, str, str], ...]] = {
@@ -58,6 +59,8 @@ class InstrumentsPanel(QGroupBox):
         self.state_label = QLabel("disconnected")
         self.connect_button = QPushButton("Connect")
         self.disconnect_button = QPushButton("Disconnect")
+        self.connect_button.setToolTip("open the rig file's instruments")
+        self.disconnect_button.setToolTip("stop every axis and release the instruments")
         self.connect_button.clicked.connect(self.connect_clicked)
         self.disconnect_button.clicked.connect(self.disconnect_clicked)
         row = QHBoxLayout()
@@ -69,6 +72,7 @@ class InstrumentsPanel(QGroupBox):
         self.body = QVBoxLayout()
         layout.addLayout(self.body)
         self.values: dict[str, QLabel] = {}
+        self.links: dict[str, QLabel] = {}  # instrument name (KDC101...) -> its link state
         self.set_connected(False)
 
     def set_spec(self, spec: RigSpec) -> None:
@@ -91,6 +95,7 @@ class InstrumentsPanel(QGroupBox):
             if widget is not None:
                 widget.deleteLater()
         self.values.clear()
+        self.links.clear()
         if rig is None:
             return
         mode = "simulated" if rig.simulated else "hardware"
@@ -99,6 +104,11 @@ class InstrumentsPanel(QGroupBox):
             form = QFormLayout(box)
             for key, value in _identity_lines(identity):
                 form.addRow(f"{key}:", QLabel(value))
+            link = QLabel("answering")
+            link.setObjectName(f"link_{name}")
+            link.setToolTip("whether the instrument answers the readout (heartbeat)")
+            form.addRow("<b>link</b>:", link)
+            self.links[NAMES.get(name, name)] = link
             for key, label, _unit in READOUTS.get(name, ()):
                 value_label = QLabel("-")
                 value_label.setObjectName(f"reading_{key}")
@@ -106,15 +116,27 @@ class InstrumentsPanel(QGroupBox):
                 self.values[key] = value_label
             self.body.addWidget(box)
 
-    def show_readings(self, values: Mapping[str, float]) -> None:
+    def show_safety(self, safety: Safety) -> None:
+        """Each instrument's link (answering, or silent for how long and why) and its values:
+        fresh as they are, otherwise greyed with their age."""
+        silent = {s.name: s for s in safety.silent}
+        for name, link in self.links.items():
+            quiet = silent.get(name)
+            link.setText(quiet.text().replace(f"{name} silent", "NOT ANSWERING") if quiet
+                         else "answering")
+            link.setStyleSheet("color:#b00020; font-weight:bold;" if quiet else "")
         units = {key: unit for rows in READOUTS.values() for key, _l, unit in rows}
         for key, label in self.values.items():
-            if key not in values:
+            if key not in safety.values:
+                label.setText("-")
                 continue
-            value = values[key]
+            value = safety.values[key]
             if key == "moving":
-                label.setText("moving" if value else "at rest")
+                text = "moving" if value else "at rest"
             elif key in ("homed", "gap_referenced"):
-                label.setText("yes" if value else "no")
+                text = "yes" if value else "no"
             else:
-                label.setText(quantity(value, units[key]))
+                text = quantity(value, units[key])
+            fresh = safety.fresh(key)
+            label.setText(text if fresh else f"{text} (last read {ago(safety.ages[key])})")
+            label.setStyleSheet("" if fresh else GREY)

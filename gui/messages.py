@@ -11,7 +11,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from instrument.errors import (
+from gelrig.instrument.contracts.loadcell import AcquisitionOverflowError, ForceOverRangeError
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
@@ -19,8 +20,7 @@ from instrument.errors import (
     InstrumentTimeout,
     InterlockTripped,
 )
-from instrument.loadcell import AcquisitionOverflowError, ForceOverRangeError
-from protocols.rig import NotHomed
+from gelrig.protocols.rig import NotHomed
 
 #: Instrument names as the drivers begin their messages.
 INSTRUMENTS = {"MCR 501": "rheometer", "KDC101": "stage controller",
@@ -62,7 +62,8 @@ def explain(exc: BaseException) -> UserMessage:
 
 
 def explain_fault(kind: str, message: str) -> UserMessage:
-    """:func:`explain` for a run's :class:`~protocols.events.Fault`, which carries the error's
+    """:func:`explain` for a run's :class:`~gelrig.protocols.events.Fault`, which carries the
+    error's
     type name and message (not the error): the typed error is rebuilt from them, the code of an
     error reply read back from its message. A kind that names no known error (the watchdog's)
     keeps its message, which its sender writes for people."""

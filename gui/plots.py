@@ -17,16 +17,17 @@ import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QGridLayout, QHBoxLayout, QLabel, QWidget
 
-from gui.cursor import Crosshair
-from gui.decimate import PeakDecimator
-from gui.rundata import RunData
-from instrument.contact import FloatArray
+from gelrig.gui.cursor import Crosshair
+from gelrig.gui.decimate import PeakDecimator
+from gelrig.gui.rundata import RunData
+from gelrig.instrument.physics.contact import FloatArray
 
 #: Line colours that read well on white (matplotlib's tab10 order).
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -51,11 +52,50 @@ def configure() -> None:
 DISPLAY = {"m": ("mm", 1e3), "N*m": ("mN*m", 1e3), "m/s": ("µm/s", 1e6)}
 
 
+#: Time axis units by the span shown: (unit, seconds per unit, used below this span in s).
+TIME_UNITS = (("s", 1.0, 600.0), ("min", 60.0, 3 * 3600.0), ("h", 3600.0, math.inf))
+
+
+class TimeAxis(pg.AxisItem):
+    """A time axis (data in s) in s, min or h, chosen by the span shown (never "ks"): up to
+    10 min in s, up to 3 h in min, beyond in h; ticks fall on round values of that unit."""
+
+    name = "time"
+    unit = ""  # none chosen yet
+    _made = False  # pyqtgraph sets a range while it makes the axis: chosen once made
+
+    def __init__(self, name: str, orientation: str = "bottom", **kwargs: Any):
+        super().__init__(orientation, **kwargs)
+        self.name, self._made = name, True
+        self.enableAutoSIPrefix(False)
+        self._choose(*self.range)
+
+    def setRange(self, mn: float, mx: float) -> None:  # noqa: N802 (pyqtgraph's name)
+        if self._made:
+            self._choose(mn, mx)
+        super().setRange(mn, mx)
+
+    def _choose(self, mn: float, mx: float) -> None:
+        span = abs(mx - mn) if math.isfinite(mx - mn) else 0.0
+        unit, per = next((u, f) for u, f, below in TIME_UNITS if span < below)
+        if unit != self.unit:  # only on a change: the label's size never feeds back
+            self.unit = unit
+            self.setScale(1.0 / per)
+            self.setLabel(f"{self.name} ({unit})")
+
+
+def time_plot(title: str | None = None, name: str = "time") -> pg.PlotWidget:
+    """A plot whose bottom axis is a :class:`TimeAxis`."""
+    return pg.PlotWidget(title=title, axisItems={"bottom": TimeAxis(name)})
+
+
 def _axis(plot: pg.PlotWidget, side: str, name: str, unit: str) -> None:
     """Label an axis; SI data shown in the fixed display unit of :data:`DISPLAY` if any,
-    else with pyqtgraph's automatic prefix."""
+    else with pyqtgraph's automatic prefix; time in s, min or h (:class:`TimeAxis`)."""
     axis = plot.getPlotItem().getAxis(side)
-    if unit in DISPLAY:
+    if isinstance(axis, TimeAxis):
+        pass  # labelled by the span it shows
+    elif unit in DISPLAY:
         shown, factor = DISPLAY[unit]
         axis.enableAutoSIPrefix(False)
         axis.setScale(factor)
@@ -66,7 +106,7 @@ def _axis(plot: pg.PlotWidget, side: str, name: str, unit: str) -> None:
 
 
 def _plot(title: str, x: tuple[str, str], y: tuple[str, str]) -> pg.PlotWidget:
-    plot = pg.PlotWidget(title=title)
+    plot = time_plot(title, x[0]) if x[1] == "s" else pg.PlotWidget(title=title)
     _axis(plot, "bottom", *x)
     _axis(plot, "left", *y)
     plot.showGrid(x=True, y=True, alpha=0.3)
@@ -99,10 +139,40 @@ def _shift(curve: pg.PlotDataItem, data: RunData) -> None:
         curve.setPos(x, 0)
 
 
+class Curve(pg.PlotDataItem):
+    """A curve whose auto-range bounds are those of all its data, never of what is drawn.
+
+    pyqtgraph's own bounds come from the displayed data, which auto-downsampling picks by
+    the view's width: the range set from them changes the downsampling, which changes the
+    bounds, which changes the range... With x not increasing (a new rig clock), or a
+    factor near a whole number, that never settles and the window repaints for ever
+    (issue 25: no timer, no click, no STOP served). Bounds of the data break the cycle."""
+
+    def __init__(self, *args: object, **kwargs: object):
+        self._bounds: dict[int, tuple[float, float] | tuple[None, None]] = {}
+        super().__init__(*args, **kwargs)
+
+    def setData(self, *args: object, **kwargs: object) -> None:  # noqa: N802 (Qt's name)
+        self._bounds = {}
+        super().setData(*args, **kwargs)
+
+    def dataBounds(self, ax: int, frac: float = 1.0,  # noqa: N802 (pyqtgraph's name)
+                   orthoRange: object = None) -> tuple[float, float] | tuple[None, None]:
+        """(min, max) of the finite data along ``ax`` (0: x, 1: y); (None, None) if none.
+        ``frac`` and ``orthoRange`` are not used: the view never asks for them here."""
+        if ax not in self._bounds:
+            data = self.xData if ax == 0 else self.yData
+            finite = None if data is None else data[np.isfinite(data)]
+            self._bounds[ax] = ((None, None) if finite is None or finite.size == 0 else
+                                (float(finite.min()), float(finite.max())))
+        return self._bounds[ax]
+
+
 def _curve(plot: pg.PlotWidget, color: object, name: str | None = None,
            style: Qt.PenStyle = Qt.PenStyle.SolidLine, sorted_x: bool = True
            ) -> pg.PlotDataItem:
-    curve = plot.plot(pen=pg.mkPen(color, width=1, style=style), name=name)
+    curve = Curve(pen=pg.mkPen(color, width=1, style=style), name=name)
+    plot.addItem(curve)
     curve.setSkipFiniteCheck(True)
     if sorted_x:  # x increases along the curve: pyqtgraph can downsample and clip
         curve.setDownsampling(auto=True, method="peak")
@@ -467,9 +537,10 @@ class IdlePlots(QWidget):
         t = values.get("t_s")
         if t is None or not self.curves:
             return
-        if self._t0 is None:
-            self._t0 = t
-        self.t.append(t - self._t0)
+        t0 = self._t0
+        if t0 is None or (self.t and t - t0 < self.t[-1]):
+            t0 = self.restart(t)  # a new rig's clock (reconnected): time from its first
+        self.t.append(t - t0)
         for key, series in self.values.items():
             series.append(values.get(key, math.nan))
         if not self.isVisible():
@@ -477,6 +548,15 @@ class IdlePlots(QWidget):
         times = np.fromiter(self.t, float, len(self.t))
         for key, series in self.values.items():
             self.curves[key].setData(times, np.fromiter(series, float, len(series)))
+
+    def restart(self, t: float) -> float:
+        """Start the series afresh at clock time ``t`` (returned): the time axis only ever
+        increases."""
+        self._t0 = t
+        self.t.clear()
+        for series in self.values.values():
+            series.clear()
+        return t
 
     def points(self) -> int:
         return len(self.t)

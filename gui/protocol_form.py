@@ -24,12 +24,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gui.fmt import entry_text, entry_value, quantity
-from instrument.errors import ConfigError
-from instrument.fields import REQUIRED, Field, Where, written_unit
-from instrument.units import convert
-from protocols.spec import ProtocolSpec, parse_protocol
-from protocols.steps import KINDS
+from gelrig.gui.fmt import entry_text, entry_value, quantity
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.fields import REQUIRED, Field, Where, written_unit
+from gelrig.instrument.core.units import convert
+from gelrig.protocols.spec import ProtocolSpec, parse_protocol
+from gelrig.protocols.steps import KINDS
 
 #: Parameters that are lists (not Fields of their step kind), validated by the step itself.
 LIST_KEYS = {"speed_ladder": ("speeds",)}
@@ -176,8 +176,11 @@ class ProtocolForm(QWidget):
             error.setVisible(False)
             if f is not None:
                 tip = f"{f.help}\n{f.allowed()}" if f.help else f.allowed()
-                label.setToolTip(tip)
-                edit.setToolTip(tip)
+            else:  # a list the step checks item by item (each within its field's range)
+                tip = (f"{key}: a comma-separated list, each in m/s or with its unit "
+                       "(1e-4 m/s, 0.1 mm/s)" if is_list else key)
+            label.setToolTip(tip)
+            edit.setToolTip(tip)
             grid.addWidget(label, 2 * row, 0)
             grid.addWidget(edit, 2 * row, 1)
             grid.addWidget(unit, 2 * row, 2)

@@ -3,6 +3,7 @@ run / pause / resume / abort, and follow the progress with a lab-time ETA."""
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import threading
@@ -22,22 +23,28 @@ from PySide6.QtWidgets import (
     QProgressBar,
     QPushButton,
     QScrollArea,
+    QStackedWidget,
     QVBoxLayout,
     QWidget,
 )
 
-from gui.protocol_form import ProtocolForm
-from instrument.units import lab_time
-from protocols.control import RunControl
-from protocols.events import Progress, RunState
-from protocols.plan import PlanSummary, dry_run
-from protocols.rehearsal import RehearsalReport, human_bytes
-from protocols.rig import CompressionLimits, ShearLimits
-from protocols.spec import ProtocolSpec
+from gelrig.gui import dialogs
+from gelrig.gui.protocol_form import ProtocolForm
+from gelrig.gui.script_form import ScriptForm
+from gelrig.gui.tomlout import dumps
+from gelrig.instrument.core.units import lab_time
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import Progress, RunState
+from gelrig.protocols.plan import PlanSummary, dry_run
+from gelrig.protocols.procedure import Procedure
+from gelrig.protocols.rehearsal import RehearsalReport, human_bytes
+from gelrig.protocols.rig import CompressionLimits, ShearLimits
+from gelrig.protocols.script import Script, load_script
+from gelrig.protocols.spec import ProtocolSpec
 
 log = logging.getLogger(__name__)
 
-Rehearse = Callable[[ProtocolSpec, RunControl], RehearsalReport]
+Rehearse = Callable[[Procedure, RunControl], RehearsalReport]
 #: Quiet time (ms) after the last edit before a rehearsal starts.
 REHEARSAL_DELAY_MS = 400
 
@@ -54,11 +61,19 @@ def eta(plan: PlanSummary, progress: Progress) -> tuple[float, float]:
     return (done / total if total > 0 else 0.0), left
 
 
+#: The choices of Pause during a hold.
+HOLD_CHOICES: tuple[dialogs.Choice, ...] = (
+    ("end", "End the hold now", QMessageBox.ButtonRole.AcceptRole),
+    ("abort", "Abort", QMessageBox.ButtonRole.DestructiveRole),
+    ("cancel", "Cancel", QMessageBox.ButtonRole.RejectRole))
+
+
 class ProtocolPanel(QGroupBox):
     """The protocol to run and the controls of its run."""
 
     open_clicked = Signal()
     run_clicked = Signal()
+    modified_changed = Signal(bool)  # differs from its file, or saved, or another file read
     pause_clicked = Signal()
     resume_clicked = Signal()
     abort_clicked = Signal()
@@ -68,6 +83,7 @@ class ProtocolPanel(QGroupBox):
         layout = QVBoxLayout(self)
         top = QHBoxLayout()
         self.open_button = QPushButton("Open protocol…")
+        self.open_button.setToolTip("read a protocol file (TOML) into the form (Ctrl+O)")
         self.open_button.clicked.connect(self.open_clicked)
         self.file_label = QLabel("no protocol")
         top.addWidget(self.open_button)
@@ -75,9 +91,20 @@ class ProtocolPanel(QGroupBox):
         layout.addLayout(top)
         self.form = ProtocolForm()
         self.form.changed.connect(self._update)
+        self.form.changed.connect(self._check_modified)
+        #: the protocol file shown (None: not from a file, or not saved yet)
+        self.path: Path | None = None
+        self._saved: dict[str, Any] = {}  # the table as last read or written
+        self.modified = False
+        self.script_form = ScriptForm()
+        self.script_form.changed.connect(self._update)
+        #: the form shown: the protocol file's steps, or a script's parameters
+        self.forms = QStackedWidget()
+        self.forms.addWidget(self.form)
+        self.forms.addWidget(self.script_form)
         scroll = QScrollArea()
         scroll.setWidgetResizable(True)
-        scroll.setWidget(self.form)
+        scroll.setWidget(self.forms)
         layout.addWidget(scroll, 3)
         self.plan_text = QPlainTextEdit()
         self.plan_text.setReadOnly(True)
@@ -87,9 +114,16 @@ class ProtocolPanel(QGroupBox):
         layout.addWidget(self.plan_text, 2)
         buttons = QHBoxLayout()
         self.run_button = QPushButton("Run")
+        self.run_button.setToolTip("run the protocol on the connected rig, recording to a new "
+                                   "run directory (Ctrl+R)")
         self.pause_button = QPushButton("Pause")
+        self.pause_button.setToolTip("pause at the next checkpoint, where nothing moves; "
+                                     "during a hold: end it or abort (Ctrl+P)")
         self.resume_button = QPushButton("Resume")
+        self.resume_button.setToolTip("go on after a pause")
         self.abort_button = QPushButton("Abort")
+        self.abort_button.setToolTip("end the run now: motion stops, the sample is made safe, "
+                                     "the data is kept")
         for button, signal in ((self.run_button, self.run_clicked),
                                (self.pause_button, self.pause_clicked),
                                (self.resume_button, self.resume_clicked),
@@ -115,7 +149,7 @@ class ProtocolPanel(QGroupBox):
         self.rehearse_fn: Rehearse | None = None
         self.rehearsal: RehearsalReport | None = None
         self.rehearsal_error = ""
-        self._rehearsing: ProtocolSpec | None = None  # the spec a rehearsal runs or ran for
+        self._rehearsing: Procedure | None = None  # the spec a rehearsal runs or ran for
         self._rehearsal_control: RunControl | None = None
         self._rehearsal_timer = QTimer(self)
         self._rehearsal_timer.setSingleShot(True)
@@ -123,17 +157,30 @@ class ProtocolPanel(QGroupBox):
         self._rehearsal_poll = QTimer(self)
         self._rehearsal_poll.setInterval(150)
         self._rehearsal_poll.timeout.connect(self._collect_rehearsal)
-        self._outbox: list[tuple[ProtocolSpec, object]] = []
+        self._outbox: list[tuple[Procedure, object]] = []
         self.why_not = "open a protocol file"
         self._update()
 
     # ---- inputs -------------------------------------------------------------------------
     @property
-    def spec(self) -> ProtocolSpec | None:
-        return self.form.spec
+    def spec(self) -> Procedure | None:
+        """What Run runs: the form's protocol, or the script with its fields' values."""
+        return self.script_form.script if self.is_script else self.form.spec
+
+    @property
+    def is_script(self) -> bool:
+        return self.forms.currentWidget() is self.script_form
+
+    @property
+    def errors(self) -> list[str]:
+        return self.script_form.errors if self.is_script else self.form.errors
 
     def load_file(self, path: Path) -> None:
-        """Read a protocol file into the form (TOML errors shown as the form's message)."""
+        """Read a protocol file into the form (TOML errors shown as the form's message), or
+        a script (``.py``) into the script's parameter fields."""
+        if path.suffix == ".py":
+            self.load_script(path)
+            return
         try:
             table: dict[str, Any] = tomllib.loads(path.read_text())
         except (OSError, tomllib.TOMLDecodeError) as exc:
@@ -141,10 +188,62 @@ class ProtocolPanel(QGroupBox):
             self.form.general.setText(f"{path}: cannot be read as TOML ({exc})")
             return
         self.set_table(table, str(path))
+        self.path = path
+        self.modified_changed.emit(self.modified)  # the title names the file now
+
+    def load_script(self, path: Path) -> None:
+        """A protocol script: its parameters as fields; Run and the rehearsal run it."""
+        self.forms.setCurrentWidget(self.script_form)
+        self.path, self.modified = path, False
+        self.file_label.setText(str(path))
+        try:
+            script = load_script(str(path))
+        except Exception as exc:  # a script's import error is the user's: said, not raised
+            self.script_form.base = None
+            self.script_form.script, self.script_form.errors = None, [
+                f"{path}: cannot be loaded as a script ({type(exc).__name__}: {exc})"]
+            self.script_form.head.setText("")
+            self.script_form.message.setText(self.script_form.errors[0])
+            self._update()
+        else:
+            self.script_form.set_script(script)
+        self.modified_changed.emit(self.modified)
 
     def set_table(self, table: dict[str, Any], source: str) -> None:
+        self.forms.setCurrentWidget(self.form)
+        self.path = None
         self.file_label.setText(source)
         self.form.set_table(table, source)
+        self._saved = self.form.edited_table()  # as the entries show it: the baseline
+        self._check_modified()
+
+    def _check_modified(self) -> None:
+        """The modified mark: the edited protocol differs from what was read or saved."""
+        if self.is_script:
+            return  # a script's parameters are the run's, never written to its file
+        modified = bool(self.form.table) and self.form.edited_table() != self._saved
+        name = str(self.path) if self.path is not None else self.form.source
+        self.file_label.setText(f"{name} (modified)" if modified else name)
+        if modified != self.modified:
+            self.modified = modified
+            self.modified_changed.emit(modified)
+
+    def save(self, path: Path | None = None) -> Path:
+        """Write the edited protocol as TOML to ``path`` (default: its file); reading it back
+        gives the same protocol. Raises OSError (said by the caller)."""
+        if self.is_script:
+            raise OSError("a script is edited in a text editor; the values of its parameters "
+                          "are kept in the run's run.json")
+        target = path or self.path
+        if target is None:
+            raise OSError("the protocol has no file yet: Save as")
+        table = self.form.edited_table()
+        target.write_text(dumps(table), encoding="utf-8")
+        self._saved, self.path = copy.deepcopy(table), target
+        self.form.source = str(target)
+        self._check_modified()
+        self.modified_changed.emit(self.modified)  # the title names the file saved to
+        return target
 
     def set_rig(self, kind: str | None, limits: CompressionLimits | ShearLimits | None,
                 connected: bool, rehearse: Rehearse | None = None) -> None:
@@ -179,22 +278,18 @@ class ProtocolPanel(QGroupBox):
                             "the next step; nothing moves then)")
         self._update()
 
-    def ask_hold(self) -> str:
-        """Pause pressed during a hold: ``"end"`` (end the hold now), ``"abort"`` or ``""``.
+    def ask_hold(self, on_choice: Callable[[str], object]) -> QMessageBox:
+        """Pause pressed during a hold: ``on_choice("end")`` (end the hold now) or
+        ``on_choice("abort")`` once answered (a non-modal question: STOP stays in reach).
 
         A hold cannot pause without changing the physics (the sample relaxes under the held
         strain whatever the software does), so the choice is to end it or abort."""
-        box = QMessageBox(QMessageBox.Icon.Question, "Pause during a hold",
-                          "The run is holding the sample at its strain. A hold cannot pause "
-                          "without changing the physics: the sample goes on relaxing.\n\n"
-                          "End the hold now: the hold's data is kept and the run goes on "
-                          "with its next phase.\nAbort: the run stops and the plate "
-                          "retracts.", QMessageBox.StandardButton.Cancel, self)
-        end = box.addButton("End the hold now", QMessageBox.ButtonRole.AcceptRole)
-        abort = box.addButton("Abort", QMessageBox.ButtonRole.DestructiveRole)
-        box.exec()
-        clicked = box.clickedButton()
-        return "end" if clicked is end else "abort" if clicked is abort else ""
+        return dialogs.ask(self, "Pause during a hold",
+                           "The run is holding the sample at its strain. A hold cannot pause "
+                           "without changing the physics: the sample goes on relaxing.\n\n"
+                           "End the hold now: the hold's data is kept and the run goes on "
+                           "with its next phase.\nAbort: the run stops and the plate "
+                           "retracts.", on_choice, HOLD_CHOICES, default="cancel")
 
     def hold_ending(self) -> None:
         self.status.setText("ending the hold now: its data is kept, the run goes on")
@@ -233,13 +328,18 @@ class ProtocolPanel(QGroupBox):
         self.plan = None
         if spec is not self._rehearsing:
             self.rehearsal, self.rehearsal_error = None, ""
-        if spec is not None and self.limits is not None:
+        if isinstance(spec, Script):  # no steps known before it runs: its rehearsal
+            self.plan_text.setPlainText(
+                "a script decides its steps as it runs: its plan is the rehearsal"
+                + (self._rehearsal_text(spec) if self.limits is not None else
+                   "\n\nconnect a rig for the rehearsal on its twin"))
+        elif isinstance(spec, ProtocolSpec) and self.limits is not None:
             self.plan = dry_run(spec, self.limits)
             self.plan_text.setPlainText(self.plan.text() + self._rehearsal_text(spec))
         elif spec is not None:
             self.plan_text.setPlainText("connect a rig for the dry run (its limits)")
         else:
-            self.plan_text.setPlainText("\n".join(self.form.errors))
+            self.plan_text.setPlainText("\n".join(self.errors))
         self.why_not = self._why_not(spec)
         self.run_button.setEnabled(not self.why_not)
         self.run_button.setToolTip(self.why_not or "run this protocol on the connected rig")
@@ -247,17 +347,17 @@ class ProtocolPanel(QGroupBox):
         self.resume_button.setEnabled(self.state == RunState.PAUSED)
         self.abort_button.setEnabled(self.active)
         self.open_button.setEnabled(not self.active)
-        self.form.setEnabled(not self.active)
+        self.forms.setEnabled(not self.active)
         if not self.active and self.why_not and self.state == RunState.IDLE:
             self.status.setText(f"not ready: {self.why_not}")
         elif not self.active and self.state == RunState.IDLE:
             self.status.setText(f"ready{self._rehearsal_status()}")
 
-    def _why_not(self, spec: ProtocolSpec | None) -> str:
+    def _why_not(self, spec: Procedure | None) -> str:
         if self.active:
             return "a run is going"
         if spec is None:
-            return "fix the protocol: " + "; ".join(self.form.errors) if self.form.errors \
+            return "fix the protocol: " + "; ".join(self.errors) if self.errors \
                 else "open a protocol file"
         if not self.connected:
             return "connect the rig"
@@ -280,7 +380,7 @@ class ProtocolPanel(QGroupBox):
             return " (rehearsing on the rig's twin...)"
         return ""
 
-    def _rehearsal_text(self, spec: ProtocolSpec) -> str:
+    def _rehearsal_text(self, spec: Procedure) -> str:
         """The rehearsal's lines under the static plan; schedules one if none ran for spec."""
         if self.rehearse_fn is None or self.active or (self.plan and self.plan.failed):
             return ""
@@ -312,7 +412,7 @@ class ProtocolPanel(QGroupBox):
         self.cancel_rehearsal()
         self._rehearsing = spec
         control = self._rehearsal_control = RunControl()
-        outbox: list[tuple[ProtocolSpec, object]] = []  # the thread touches no Qt object
+        outbox: list[tuple[Procedure, object]] = []  # the thread touches no Qt object
 
         def work() -> None:
             try:

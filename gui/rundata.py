@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from instrument.contact import FloatArray
+from gelrig.instrument.physics.contact import FloatArray
 
 #: Columns kept for plotting and live readouts (compression and shear steps).
 KEPT = ("t_s", "force_N", "position_m", "theta_m", "angle_rad", "torque_Nm",

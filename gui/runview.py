@@ -14,12 +14,12 @@ from typing import Any
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QCloseEvent, QFontDatabase
-from PySide6.QtWidgets import QMainWindow, QPlainTextEdit, QSplitter, QWidget
+from PySide6.QtWidgets import QApplication, QMainWindow, QPlainTextEdit, QSplitter, QWidget
 
-from gui.fmt import quantity
-from gui.plots import LivePlots, plots_for
-from gui.rundata import RunData
-from instrument.store import RunDirectory, read_step
+from gelrig.gui.fmt import quantity
+from gelrig.gui.plots import LivePlots, plots_for
+from gelrig.gui.rundata import RunData
+from gelrig.instrument.core.store import RunDirectory, read_step
 
 
 def load_run(path: Path) -> tuple[dict[str, Any], RunData]:
@@ -48,32 +48,53 @@ def rig_kind(meta: Mapping[str, Any]) -> str:
     return str(head.get("rig", "compression"))
 
 
+#: A stored result's name suffix -> its SI unit.
+_SUFFIXES = (("_m_s", "m/s"), ("_Pa", "Pa"), ("_Nm", "N*m"), ("_m", "m"), ("_N", "N"),
+             ("_rad", "rad"), ("_s", "s"))
+
+
 def _value(key: str, value: Any) -> str:
     if isinstance(value, float):
-        for suffix, unit in (("_m_s", "m/s"), ("_Pa", "Pa"), ("_Nm", "N*m"), ("_m", "m"),
-                             ("_N", "N"), ("_rad", "rad"), ("_s", "s")):
+        for suffix, unit in _SUFFIXES:
             if key.endswith(suffix):
                 return quantity(value, unit, digits=6)
         return f"{value:.6g}"
     return str(value)
 
 
-def _fit_line(fit: Mapping[str, Any]) -> str:
+def _name(key: str, value: Any) -> str:
+    """A stored name as people read it beside its value in lab units: 'measured_depth_m'
+    -> 'measured depth' (the unit is on the value, not an SI suffix left on the name)."""
+    if isinstance(value, float):
+        for suffix, _unit in _SUFFIXES:
+            if key.endswith(suffix):
+                key = key.removesuffix(suffix)
+                break
+    return key.replace("_", " ")
+
+
+def _fit_line(fit: Mapping[str, Any], position: int) -> str:
+    """A stored fit as one line (ADR 0261): ``N-term fit: G_e ..., G_1 ..., tau_1 ...`` when
+    every term it asked for is resolved, else ``N-term fit: not resolved: <reason>`` and no
+    values (a 2-term entry that holds the resolved 1-term values is not a 2-term result).
+    ``position``: the fit's place in the hold's list (1: the 1-term fit), its term count
+    when run.json does not say."""
+    relax = list(fit.get("relax") or [])
+    requested = int(fit.get("terms_requested", position))
     if "error" in fit:
-        return f"fit failed: {fit['error']}"
-    relax = list(fit.get("relax", []))
-    shown = [f"G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
-             f"tau_{k} {quantity(float(r['tau']), 's', 4)}" for k, r in enumerate(relax, start=1)]
-    resolved = fit.get("terms_resolved")
-    n = len(shown) if not isinstance(resolved, int) or not fit.get("not_resolved") else resolved
-    line = f"fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}"
-    if shown[:n]:
-        line += "; " + ", ".join(shown[:n])
-    if fit.get("not_resolved"):  # the unresolved terms are shown, but not as results
-        line += f" -- {fit['not_resolved']}"
-        if shown[n:]:
-            line += f" ({', '.join(shown[n:])}: not a result)"
-    return line
+        return f"{requested}-term fit failed: {fit['error']}"
+    resolved = fit.get("resolved")
+    if not isinstance(resolved, bool):
+        counted = fit.get("terms_resolved")
+        resolved = (isinstance(counted, int) and counted >= requested
+                    and not fit.get("not_resolved"))
+    if not resolved or len(relax) != requested:
+        why = fit.get("not_resolved") or "not every term is resolved"
+        return f"{requested}-term fit: not resolved: {why}"
+    terms = "".join(f", G_{k} {quantity(float(r['G']), 'Pa', 3)}, "
+                    f"tau_{k} {quantity(float(r['tau']), 's', 4)}"
+                    for k, r in enumerate(relax, start=1))
+    return f"{requested}-term fit: G_e {quantity(float(fit['G_e']), 'Pa', 3)}{terms}"
 
 
 def step_lines(results: Mapping[str, Any]) -> list[str]:
@@ -90,10 +111,10 @@ def step_lines(results: Mapping[str, Any]) -> list[str]:
         if key in ("first_touch_m", "first_touch_spread_m"):
             continue
         if isinstance(value, int | float | str):
-            lines.append(f"{key} = {_value(key, value)}")
-    for fit in results.get("fits", []):
+            lines.append(f"{_name(key, value)} = {_value(key, value)}")
+    for position, fit in enumerate(results.get("fits", []), start=1):
         if isinstance(fit, Mapping) and ("G_e" in fit or "error" in fit):
-            lines.append(_fit_line(fit))
+            lines.append(_fit_line(fit, position))
     if "passes" in results:
         lines.append(f"{len(results['passes'])} passes")
     return lines
@@ -113,6 +134,25 @@ def stored_summary(meta: Mapping[str, Any]) -> str:
     for fault in meta.get("faults", []):
         lines.append(f"fault: {fault.get('kind')}: {fault.get('message')}")
     return "\n".join(lines)
+
+
+#: The Open run window's preferred size (px); never larger than the screen's available area.
+RUN_WINDOW_SIZE = (1100, 800)
+
+
+def fit_to_screen(window: QWidget, preferred: tuple[int, int]) -> None:
+    """Size ``window`` to ``preferred`` within the available screen area (the window frame
+    allowed for), and place it at the area's top left; it stays resizable."""
+    screen = window.screen() or QApplication.primaryScreen()
+    if screen is None:
+        window.resize(*preferred)
+        return
+    area = screen.availableGeometry()
+    frame_w, frame_h = 8, 32  # a typical title bar and border, before the frame is known
+    width = min(preferred[0], area.width() - frame_w)
+    height = min(preferred[1], area.height() - frame_h)
+    window.resize(max(width, 200), max(height, 150))
+    window.move(area.topLeft())
 
 
 class RunWindow(QMainWindow):
@@ -142,8 +182,10 @@ class RunWindow(QMainWindow):
         splitter.addWidget(self.plots)
         splitter.addWidget(self.summary)
         splitter.setSizes([600, 200])
+        for widget in (self.plots, self.summary):
+            widget.setMinimumSize(0, 0)  # the window may shrink to a small screen
         self.setCentralWidget(splitter)
-        self.resize(1100, 800)
+        fit_to_screen(self, RUN_WINDOW_SIZE)
 
     def _analyse(self, analyze: Callable[[Path], str]) -> None:
         try:

@@ -1,23 +1,24 @@
 """What the composition root hands the GUI: callables and paths, never the factory itself.
 
-gui/ must not import gelrig.* (design.md): the console entry point builds a :class:`Services`
-from the rig-file loader, the rig factory, the run metadata and the run-directory naming, and
-passes it in. Tests pass their own (a factory wrapper that keeps the rig, say).
+gui/ must not import the composition roots (``gelrig.factory``, ``gelrig.cli``,
+``gelrig.commands``; design.md): the console entry point builds a :class:`Services` from the
+rig-file loader, the rig factory, the analysis and the rehearsal, and passes it in. Runs are
+hosted by :class:`gelrig.protocols.host.RunHost` like every front end's. Tests pass their own
+services (a factory wrapper that keeps the rig, say).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-from instrument.clock import Clock
-from protocols.control import RunControl
-from protocols.rehearsal import RehearsalReport
-from protocols.rig import Rig
-from protocols.rigfile import RigSpec
-from protocols.spec import ProtocolSpec
+from gelrig.instrument.core.clock import Clock
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.procedure import Procedure
+from gelrig.protocols.rehearsal import RehearsalReport
+from gelrig.protocols.rig import Rig
+from gelrig.protocols.rigfile import RigSpec
 
 
 @dataclass(frozen=True)
@@ -32,8 +33,6 @@ class Services:
     rig_file: Path
     load_rig: Callable[[Path], RigSpec]
     build_rig: Callable[[RigSpec, Clock], Rig]
-    metadata: Callable[[ProtocolSpec, RigSpec, str], Mapping[str, Any]]
-    default_run_dir: Callable[[ProtocolSpec], Path]
     pace: float = 1.0
     rig_dir: Path | None = None
     #: where run directories are created (``--runs``): Open run starts there
@@ -41,4 +40,4 @@ class Services:
     protocol_dir: Path | None = None
     analyze: Callable[[Path], str] | None = None
     #: the rehearsal of a protocol on the rig's twin (``gelrig plan``), run off the GUI thread
-    rehearse: Callable[[ProtocolSpec, RigSpec, RunControl], RehearsalReport] | None = None
+    rehearse: Callable[[Procedure, RigSpec, RunControl], RehearsalReport] | None = None

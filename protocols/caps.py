@@ -4,19 +4,28 @@ A rig wraps its instruments in these checked views (:class:`CappedStage`,
 :class:`CappedRheometer`), so a speed, position or gap outside the rig file's limits is refused
 with a :class:`LimitError` that names the cap before the command reaches the instrument:
 nothing moves. Everything else passes straight through to the wrapped instrument. What a
-rehearsal on the rig's twin passes, a run passes too (docs/decisions/0090).
+rehearsal on the rig's twin passes, a run passes too (docs/decisions/0090). Every call also
+passes the rig's fence (:mod:`gelrig.protocols.fence`: safe stop first).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
 
-from instrument.errors import LimitError
-from instrument.identity import Identity
-from instrument.rheometer import Rheometer, RheometerConfig, RheometerStatus, StreamPoint
-from instrument.stage import Stage, StageConfig, StageStatus
+from gelrig.instrument.contracts.rheometer import (
+    Rheometer,
+    RheometerConfig,
+    RheometerStatus,
+    StreamPoint,
+)
+from gelrig.instrument.contracts.stage import Stage, StageConfig, StageStatus
+from gelrig.instrument.core.errors import LimitError
+from gelrig.instrument.core.identity import Identity
+from gelrig.protocols.fence import Fence
+
+T = TypeVar("T")
 
 #: Relative slack on a cap: a speed computed to equal the cap is not refused for rounding.
 _SLACK = 1e-9
@@ -75,52 +84,59 @@ def _refuse(why: str | None) -> None:
 class CappedStage:
     """A :class:`Stage` with the rig file's caps checked on every command (see module)."""
 
-    def __init__(self, stage: Stage, config: StageConfig):
+    def __init__(self, stage: Stage, config: StageConfig, fence: Fence | None = None):
         self.inner = stage
         self.caps = config
+        self.fence = fence or Fence()
+
+    def _call(self, what: str, fn: Callable[[], T]) -> T:
+        return self.fence.call("stage", what, fn)
 
     def __getattr__(self, name: str) -> Any:  # driver extras (velocity_params, ...) pass on
         return getattr(self.inner, name)
 
     def set_velocity(self, max_m_s: float, accel_m_s2: float) -> None:
         _refuse(stage_speed_error(max_m_s, self.caps))
-        self.inner.set_velocity(max_m_s, accel_m_s2)
+        self._call("set velocity", lambda: self.inner.set_velocity(max_m_s, accel_m_s2))
 
     def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
         _refuse(stage_position_error(position_m, self.caps))
-        self.inner.move_to(position_m, wait, timeout)
+        self._call("move to", lambda: self.inner.move_to(position_m, wait, timeout))
 
     def move_by(self, distance_m: float, wait: bool = True, timeout: float | None = None) -> None:
         # the end point is checked by the driver against the same [stage] limits (no extra
         # position query here: it would cost a round trip on every probe)
-        self.inner.move_by(distance_m, wait, timeout)
+        self._call("move by", lambda: self.inner.move_by(distance_m, wait, timeout))
 
     def identify(self) -> Identity:
-        return self.inner.identify()
+        return self._call("identify", self.inner.identify)
 
     def enable(self) -> None:
-        self.inner.enable()
+        self._call("enable", self.inner.enable)
 
     def home(self, wait: bool = True, timeout: float | None = None) -> None:
-        self.inner.home(wait, timeout)
+        self._call("home", lambda: self.inner.home(wait, timeout))
 
     def move_velocity(self, direction: int) -> None:
-        self.inner.move_velocity(direction)
+        self._call("move velocity", lambda: self.inner.move_velocity(direction))
+
+    def keep_alive(self) -> None:
+        self.inner.keep_alive()
 
     def stop(self, immediate: bool = True) -> None:
-        self.inner.stop(immediate)
+        self._call("stop", lambda: self.inner.stop(immediate))
 
     def position(self) -> float:
-        return self.inner.position()
+        return self._call("position", self.inner.position)
 
     def status(self) -> StageStatus:
-        return self.inner.status()
+        return self._call("status", self.inner.status)
 
     def is_moving(self) -> bool:
-        return self.inner.is_moving()
+        return self._call("is moving", self.inner.is_moving)
 
     def wait_until_stopped(self, timeout: float | None = None) -> None:
-        self.inner.wait_until_stopped(timeout)
+        self._call("wait until stopped", lambda: self.inner.wait_until_stopped(timeout))
 
     def close(self) -> None:
         self.inner.close()
@@ -131,10 +147,14 @@ class CappedRheometer:
     speed, and the gap (within the lift's range and, once ``touch_gap`` is known, at most
     ``max_overlap`` below it)."""
 
-    def __init__(self, rheometer: Rheometer, max_overlap: float):
+    def __init__(self, rheometer: Rheometer, max_overlap: float, fence: Fence | None = None):
         self.inner = rheometer
         self.max_overlap = min(max_overlap, rheometer.config.overlap_limit)
         self.touch_gap: float | None = rheometer.config.touch_gap
+        self.fence = fence or Fence()
+
+    def _call(self, what: str, fn: Callable[[], T]) -> T:
+        return self.fence.call("rheometer", what, fn)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.inner, name)
@@ -149,50 +169,53 @@ class CappedRheometer:
 
     def rotate(self, speed: float) -> None:
         _refuse(arm_speed_error(speed, self.inner.config))
-        self.inner.rotate(speed)
+        self._call("rotate", lambda: self.inner.rotate(speed))
+
+    def keep_alive(self) -> None:
+        self.inner.keep_alive()
 
     def set_gap(self, gap: float, wait: bool = True) -> None:
         _refuse(self.gap_error(gap))
-        self.inner.set_gap(gap, wait)
+        self._call("set gap", lambda: self.inner.set_gap(gap, wait))
 
     def identify(self) -> Identity:
-        return self.inner.identify()
+        return self._call("identify", self.inner.identify)
 
     def status(self) -> RheometerStatus:
-        return self.inner.status()
+        return self._call("status", self.inner.status)
 
     def zero_gap(self) -> None:
-        self.inner.zero_gap()
+        self._call("zero gap", self.inner.zero_gap)
 
     def gap(self) -> float:
-        return self.inner.gap()
+        return self._call("gap", self.inner.gap)
 
     def stop(self) -> None:
-        self.inner.stop()
+        self._call("stop", self.inner.stop)
 
     def hold(self) -> None:
-        self.inner.hold()
+        self._call("hold", self.inner.hold)
 
     def angle(self) -> float:
-        return self.inner.angle()
+        return self._call("angle", self.inner.angle)
 
     def theta(self) -> float:
-        return self.inner.theta()
+        return self._call("theta", self.inner.theta)
 
     def torque(self) -> float:
-        return self.inner.torque()
+        return self._call("torque", self.inner.torque)
 
     def normal_force(self) -> float:
-        return self.inner.normal_force()
+        return self._call("normal force", self.inner.normal_force)
 
     def start_stream(self, interval: float) -> None:
-        self.inner.start_stream(interval)
+        self._call("start stream", lambda: self.inner.start_stream(interval))
 
     def read_stream(self) -> Sequence[StreamPoint]:
-        return self.inner.read_stream()
+        return self._call("read stream", self.inner.read_stream)
 
     def stop_stream(self) -> None:
-        self.inner.stop_stream()
+        self._call("stop stream", self.inner.stop_stream)
 
     def close(self) -> None:
         self.inner.close()

@@ -5,13 +5,20 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Generic, TypeVar
 
-from instrument.clock import Clock
-from instrument.contact import FloatArray
-from instrument.errors import InterlockTripped
-from protocols.control import RunControl
-from protocols.events import EventBus, InterlockTrip, Progress, RunState, Samples, StateChanged
-from protocols.interlocks import Interlock, check
-from protocols.rig import RigT
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import InterlockTripped
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import (
+    EventBus,
+    InterlockTrip,
+    Progress,
+    RunState,
+    Samples,
+    StateChanged,
+)
+from gelrig.protocols.interlocks import Interlock, check
+from gelrig.protocols.rig import RigT
 
 T = TypeVar("T")
 
@@ -29,6 +36,7 @@ class StepContext(Generic[RigT]):
         index: int,
         outcomes: Mapping[int, object] | None = None,
         watched: bool = True,
+        rehearsal: bool = False,
     ):
         self.rig: RigT = rig
         self.clock: Clock = rig.clock
@@ -41,6 +49,9 @@ class StepContext(Generic[RigT]):
         #: someone watches the run (CLI, GUI); False in a rehearsal: work done only for the
         #: display (live refits of a fixed hold) is skipped, nothing that steers the run
         self.watched = watched
+        #: the run is a rehearsal on the twin (``gelrig plan``, ``gelrig run``'s check): a step
+        #: gives the results a script reads (a hold's fits) from a thinned copy of its data
+        self.rehearsal = rehearsal
 
     def earlier(self, kind: type[T]) -> T | None:
         """The latest earlier step's result of type ``kind`` (e.g. a contact search's), or

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from instrument.contact import FloatArray
-from instrument.live_fit import LiveFitState
-from protocols.safestop import SafeState
+from gelrig.instrument.analysis.live_fit import LiveFitState
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.safestop import SafeState
 
 log = logging.getLogger(__name__)
 
@@ -32,10 +32,13 @@ class RunState(enum.Enum):
     COMPLETED = "completed"
     ABORTED = "aborted"
     FAILED = "failed"
+    #: a step the rig's caps or the run's bounds refuse, ended before it moved (exit 2)
+    REFUSED = "refused"
 
     @property
     def finished(self) -> bool:
-        return self in (RunState.COMPLETED, RunState.ABORTED, RunState.FAILED)
+        return self in (RunState.COMPLETED, RunState.ABORTED, RunState.FAILED,
+                        RunState.REFUSED)
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,8 @@ class Progress(Event):
 @dataclass(frozen=True)
 class FitUpdate(Event):
     """A refit of the live relaxation fit during step ``index``'s hold
-    (``instrument.live_fit.LiveFitState``: parameters, standard errors, terms resolved, each
+    (``gelrig.instrument.analysis.live_fit.LiveFitState``: parameters, standard errors, terms
+    resolved, each
     time constant's relative standard error now and forecast at the planned end); ``met``:
     this refit meets the adaptive hold's target, ``ending``: the hold ends on it."""
 
@@ -102,7 +106,7 @@ class StepFinished(Event):
 
     index: int
     name: str
-    status: str  # "completed" | "aborted" | "failed"
+    status: str  # "completed" | "aborted" | "failed" | "refused"
     results: Mapping[str, Any] = field(default_factory=dict)
 
 

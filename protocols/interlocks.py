@@ -8,7 +8,7 @@ from functools import cached_property
 
 import numpy as np
 
-from instrument.contact import FloatArray
+from gelrig.instrument.physics.contact import FloatArray
 
 
 @dataclass(frozen=True)
@@ -53,9 +53,21 @@ class Trip:
 
     @property
     def message(self) -> str:
+        """'interlock force: 50.3 mN beyond the limit 50 mN at t = 12.345 s' (lab units:
+        lengths in mm, forces in mN, torques in mN*m)."""
         il = self.interlock
-        return (f"interlock {il.name}: {self.value:.6g} {il.unit} beyond the limit "
-                f"{il.limit:.6g} {il.unit} at t = {self.t:.3f} s")
+        return (f"interlock {il.name}: {lab(self.value, il.unit)} beyond the limit "
+                f"{lab(il.limit, il.unit, '.6g')} at t = {self.t:.3f} s")
+
+
+#: SI unit -> (lab unit, factor) of the messages people read.
+LAB_UNITS = {"m": ("mm", 1e3), "N": ("mN", 1e3), "N*m": ("mN*m", 1e3)}
+
+
+def lab(value: float, unit: str, spec: str = ".4g") -> str:
+    """An SI value in the lab's unit: ``0.00250091, "m"`` -> '2.501 mm'."""
+    shown, factor = LAB_UNITS.get(unit, (unit, 1.0))
+    return f"{value * factor:{spec}} {shown}"
 
 
 def check(interlocks: tuple[Interlock, ...], data: Mapping[str, FloatArray]) -> Trip | None:

@@ -9,12 +9,13 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from protocols.spec import Step, StepSink
+    from gelrig.protocols.sample import Sample
+    from gelrig.protocols.spec import Step, StepSink
 
 
 class Procedure(Protocol):
-    """A protocol file (:class:`protocols.spec.ProtocolSpec`) or a script
-    (:class:`protocols.script.Script`)."""
+    """A protocol file (:class:`gelrig.protocols.spec.ProtocolSpec`) or a script
+    (:class:`gelrig.protocols.script.Script`)."""
 
     @property
     def name(self) -> str: ...
@@ -24,6 +25,11 @@ class Procedure(Protocol):
 
     @property
     def source(self) -> str: ...
+
+    @property
+    def sample(self) -> Sample | None:
+        """The run's sample (what steps take their sizes from), None when none was given."""
+        ...
 
     @property
     def table(self) -> Mapping[str, Any]:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import contextlib
 from dataclasses import asdict
 
-from instrument.store import RunDirectory, StepWriter, StorageFault
-from protocols.events import (
+from gelrig.instrument.core.store import RunDirectory, StepWriter, StorageFault
+from gelrig.protocols.events import (
     Event,
     Fault,
     Finished,
@@ -61,7 +61,7 @@ class Recorder:
         elif isinstance(event, StepFinished):
             status, results = event.status, dict(event.results)
             try:
-                rows = self._close_writer({"status": event.status})
+                rows = self._close_writer(event.status)
             except StorageFault as exc:  # raised at the next step: the runner stops there
                 self.fault = self.fault or str(exc)
                 rows = self._rows
@@ -85,19 +85,19 @@ class Recorder:
             self.run.update(safe_state=event.state.as_dict())
         elif isinstance(event, Finished):
             with contextlib.suppress(StorageFault):
-                self._close_writer({"status": event.state.value})
+                self._close_writer(event.state.value)
             self.run.release_space()
             if self.fault is not None and event.state.value == "completed":
                 self.run.update(status="failed", reason=self.fault, finished=event.t)
             else:
                 self.run.update(status=event.state.value, reason=event.reason, finished=event.t)
 
-    def _close_writer(self, attrs: dict[str, str] | None = None) -> int:
+    def _close_writer(self, status: str | None = None) -> int:
         writer, self._writer, self._index = self._writer, None, None
         if writer is None:
             return 0
         try:
-            writer.close(attrs)
+            writer.close(status)
         finally:
             self._rows = writer.rows  # what the file keeps, also after a fault
         return writer.rows

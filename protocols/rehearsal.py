@@ -10,6 +10,7 @@ run hits, with where (step, lab time, what). See docs/decisions/0090.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -17,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from instrument.contact import FloatArray
-from instrument.units import lab_time
-from protocols.control import RunControl
-from protocols.events import (
+from gelrig.instrument.core.units import lab_time
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import (
     Event,
     EventBus,
     Fault,
@@ -32,9 +33,13 @@ from protocols.events import (
     StepFinished,
     StepStarted,
 )
-from protocols.procedure import Procedure
-from protocols.rig import Rig
-from protocols.runner import Runner
+from gelrig.protocols.procedure import Procedure
+from gelrig.protocols.rig import Rig
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.script import Script
+from gelrig.protocols.spec import effective_params
+
+log = logging.getLogger(__name__)
 
 #: Columns whose path length is a step's travel: the plate position, the arm's arc.
 TRAVEL_COLUMNS = ("position_m", "theta_m")
@@ -57,6 +62,11 @@ class StepFigures:
     travel: float = 0.0
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     columns: tuple[str, ...] = ()
+    #: the parameters the step ran with, as ``gelrig plan`` prints them (a script's steps,
+    #: which no static plan shows): ``key = value [(default) | (sample)]``
+    uses: list[str] = field(default_factory=list)
+    #: the step's results (a hold's fits from the twin's data)
+    results: dict[str, Any] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -72,6 +82,8 @@ class LimitHit:
     step: str
     t: float
     what: str
+    #: "limit" (an interlock trip) or "fault" (a fault or a refusal event)
+    kind: str = "limit"
 
 
 @dataclass
@@ -85,6 +97,10 @@ class RehearsalReport:
     end: float
     steps: list[StepFigures]
     hits: list[LimitHit]
+    #: the refusal's own line when a step was refused (no "refused before ..." tail)
+    refusal: str = ""
+    #: the procedure is a script: an exception between steps is the script's own
+    script: bool = False
 
     @property
     def ok(self) -> bool:
@@ -111,11 +127,15 @@ class RehearsalReport:
         """One line: the step that failed, when, and why ('' if the rehearsal passed)."""
         if self.ok:
             return ""
-        if self.reason.startswith("step "):  # refused before anything moved: names its step
+        if self.refusal:  # refused before the step moved: the line names its step (a run
+            return f"{self.refusal}; refused before anything moves"  # rehearsed refuses first
+        if self.reason.startswith("step "):
             return self.reason
         failed = next((s for s in self.steps if s.status not in ("completed", "not run")),
                       None)
-        if failed is None:
+        if failed is None:  # between steps: the script's own code (or a replay mismatch)
+            if self.script and self.state is RunState.FAILED:
+                return f"the script raised {self.reason}"
             return f"{self.state.value}: {self.reason}"
         return (f"step {failed.index} ({failed.name}) at {self.end:.1f} s lab time: "
                 f"{self.reason}")
@@ -124,8 +144,9 @@ class RehearsalReport:
         """The figures for people, one step a line, then the limits hit and the total."""
         out = []
         for s in self.steps:
-            if s.status == "not run":
-                out.append(f"{s.index}. {s.name}: not run")
+            if s.status in ("not run", "refused") or math.isnan(s.started):
+                out.append(f"{s.index}. {s.name}: {s.status}")
+                out += [f"   uses {', '.join(s.uses)}"] if s.uses else []
                 continue
             where = "".join(f", {_short(c)} {lo * 1e3:.3f}..{hi * 1e3:.3f} mm"
                             for c, (lo, hi) in s.ranges.items())
@@ -133,10 +154,14 @@ class RehearsalReport:
                        f"({lab_time(s.duration)}) lab time, travel {s.travel * 1e3:.1f} mm"
                        f"{where}; {s.samples:,} samples x {len(s.columns)} columns, "
                        f"{human_bytes(s.bytes)}")
+            out += [f"   uses {', '.join(s.uses)}"] if s.uses else []
         for hit in self.hits:
-            out.append(f"LIMIT step {hit.index} ({hit.step}) at {hit.t:.1f} s: {hit.what}"
-                       if hit.index is not None else f"LIMIT at {hit.t:.1f} s: {hit.what}")
-        verdict = "passed" if self.ok else f"FAILED: {self.failure()}"
+            if not self.ok and self.reason and self.reason in hit.what:
+                continue  # the run's end: said once, by failure()
+            head = "LIMIT" if hit.kind == "limit" else "FAULT"
+            out.append(f"{head} step {hit.index} ({hit.step}) at {hit.t:.1f} s: {hit.what}"
+                       if hit.index is not None else f"{head} at {hit.t:.1f} s: {hit.what}")
+        verdict = "passed" if self.ok else "FAILED (why: the one line below)"
         out.append(f"Total: {self.total:.2f} s ({lab_time(self.total)}) lab time, travel "
                    f"{self.travel * 1e3:.1f} mm, {self.samples:,} samples, "
                    f"{human_bytes(self.bytes)}; rehearsal {verdict}")
@@ -171,29 +196,34 @@ class Counter:
         if isinstance(event, Samples):
             self._samples(event.data)
         elif isinstance(event, StepStarted):
-            while len(self.steps) <= event.index:  # a script's steps show up as it runs
-                self.steps.append(StepFigures(len(self.steps), event.name, event.kind))
-            figures = self.steps[event.index]
+            figures = self._figures(event.index, event.name, event.kind)
             figures.status, figures.started = "running", event.t
             figures.columns = tuple(event.columns)
             self.current, self._last = figures, {}
-        elif isinstance(event, StepFinished):
-            figures = self.steps[event.index]
+        elif isinstance(event, StepFinished):  # also a script's step refused before it began
+            figures = self._figures(event.index, event.name, "")
             figures.status, figures.finished = event.status, event.t
+            figures.results = dict(event.results)
             self.current = None
         elif isinstance(event, InterlockTrip):
-            self._hit(event.t, f"{event.interlock} interlock: {event.message}")
+            self._hit(event.t, f"{event.interlock} interlock: {event.message}", "limit")
         elif isinstance(event, Fault):
-            self._hit(event.t, f"{event.kind}: {event.message}")
+            self._hit(event.t, f"{event.kind}: {event.message}", "fault")
         elif isinstance(event, StateChanged) and math.isnan(self.start):
             self.start = event.t
         elif isinstance(event, Finished):
             self.end = event.t
 
-    def _hit(self, t: float, what: str) -> None:
+    def _figures(self, index: int, name: str, kind: str) -> StepFigures:
+        index = max(index, 0)
+        while len(self.steps) <= index:  # a script's steps show up as it runs
+            self.steps.append(StepFigures(len(self.steps), name, kind))
+        return self.steps[index]
+
+    def _hit(self, t: float, what: str, kind: str) -> None:
         step = self.current
         self.hits.append(LimitHit(step.index if step else None, step.name if step else "", t,
-                                  what))
+                                  what, kind))
 
     def _samples(self, data: Mapping[str, FloatArray]) -> None:
         """Count a block. Called once per read (thousands of small blocks in a shear ladder):
@@ -235,16 +265,21 @@ def rehearse(
     bus = EventBus() if bus is None else bus
     counter = Counter(protocol)
     bus.subscribe(counter)
-    runner = Runner(rig, protocol, bus, control, watched=False)
+    runner = Runner(rig, protocol, bus, control, watched=False, rehearsal=True)
     try:
         state = runner.run()
         reason = runner.reason
     except Exception as exc:  # a bug or an unexpected error: report it, do not raise
         state, reason = RunState.FAILED, f"{type(exc).__name__}: {exc}"
+        log.error("the rehearsal raised", exc_info=exc)
     start = counter.start if math.isfinite(counter.start) else rig.clock.now()
     end = counter.end if math.isfinite(counter.end) else rig.clock.now()
+    known = len(protocol.steps)  # a protocol file's: its static plan prints them
+    for index, step in enumerate(runner.sent):
+        if index >= known:
+            counter._figures(index, step.name, step.kind).uses = effective_params(step)
     return RehearsalReport(protocol.name, state, reason, start, end, counter.steps,
-                           counter.hits)
+                           counter.hits, runner.refusal, isinstance(protocol, Script))
 
 
 def describe(report: RehearsalReport) -> dict[str, Any]:

@@ -7,28 +7,33 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-from instrument.clock import Clock
-from instrument.errors import GelrigError, InstrumentError
-from instrument.fields import Config, Field, param
-from instrument.loadcell import ForceSensor
-from instrument.rheometer import Rheometer
-from instrument.stage import Stage, StageConfig
-from protocols.caps import CappedRheometer, CappedStage
-from protocols.interlocks import Interlock
-from protocols.safestop import SafeState, stop_rheometer, stop_stage
+from gelrig.instrument.contracts.loadcell import ForceSensor
+from gelrig.instrument.contracts.rheometer import Rheometer
+from gelrig.instrument.contracts.stage import Stage, StageConfig
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import GelrigError, InstrumentError
+from gelrig.instrument.core.fields import Config, Field, param
+from gelrig.instrument.core.stage_path import StagePath
+from gelrig.instrument.core.timebase import SampleClock, TimeMapping
+from gelrig.instrument.physics import paper
+from gelrig.protocols.caps import CappedRheometer, CappedStage
+from gelrig.protocols.fence import Fence, FencedForce
+from gelrig.protocols.interlocks import Interlock
+from gelrig.protocols.safestop import AxisState, SafeState, stop_rheometer, stop_stage
 
 log = logging.getLogger(__name__)
 
 #: Force (N) above which a sample counts as loaded: the contact search's default threshold.
 LOADED_FORCE = 5e-3
 #: Torque (N*m) above which the shear sample counts as loaded: the shear search's default.
-LOADED_TORQUE = 0.2e-3
+LOADED_TORQUE = paper.CONTACT_TORQUE
 #: How far an unload moves (m) when the rig file's retract or lift after a fault is 0.
 UNLOAD_DEFAULT = 2e-3
 
@@ -106,6 +111,8 @@ class CompressionRig:
     monitoring: bool = field(default=False, init=False)
     #: stage position of first touch, once a step knows it: where a safe stop retracts from
     first_touch: float | None = field(default=None, init=False)
+    #: safe stop first: armed by the runner while a step runs (protocols/fence.py)
+    fence: Fence = field(default_factory=Fence, init=False)
 
     kind = "compression"
 
@@ -114,7 +121,11 @@ class CompressionRig:
         if not isinstance(self.stage, CappedStage):
             caps = getattr(self.stage, "config", None)
             self.stage = CappedStage(self.stage, caps if isinstance(caps, StageConfig)
-                                     else StageConfig())
+                                     else StageConfig(), self.fence)
+        else:
+            self.stage.fence = self.fence
+        if not isinstance(self.force, FencedForce):
+            self.force = FencedForce(self.force, self.fence)
 
     @property
     def stage_caps(self) -> StageConfig:
@@ -129,6 +140,23 @@ class CompressionRig:
             return (force,)
         return force, Interlock("overlap", "delta_m", self.limits.max_overlap, "m",
                                 absolute=False)
+
+    def time_base(self) -> dict[str, Any]:
+        """How each instrument's readings are put on the run's clock, and how well (run.json's
+        ``time_base``, ADR 0241)."""
+        out: dict[str, Any] = {"clock": "the run's clock (s); every column of a row refers to "
+                                        "the force sample's instant"}
+        path = getattr(self.stage, "path", None)
+        if isinstance(path, StagePath):
+            out["stage"] = path.mapping("stage").as_dict()
+        else:
+            out["stage"] = TimeMapping("stage", "positions interpolated between polls taken "
+                                       "within each poll's request-reply window", math.nan,
+                                       {}).as_dict()
+        clock = getattr(self.force, "sample_clock", None)
+        if isinstance(clock, SampleClock):
+            out["force"] = clock.mapping("force").as_dict()
+        return out
 
     def readings(self, monitor_rate: float = 100.0) -> dict[str, float]:
         """Live values while idle: position, motion, homed, and the latest force (mean of
@@ -200,9 +228,30 @@ class CompressionRig:
         retract = limits.retract_on_fault or UNLOAD_DEFAULT
         if self.first_touch is None:
             retract = math.inf  # where the sphere is is not known: all the way back
-        axis = stop_stage(self.stage, self.clock, retract, self.first_touch, limits.fast_speed,
-                          limits.acceleration, budget)
-        return SafeState("unload the sample", [axis])
+        return self._stopped("unload the sample", lambda: stop_stage(
+            self.stage, self.clock, retract, self.first_touch, limits.fast_speed,
+            limits.acceleration, budget, self.force_now, LOADED_FORCE))
+
+    def force_now(self) -> float:
+        """The load on the sample now (N): the mean of the latest 0.1 s of samples (the
+        force input started at 100 Hz if it is not running)."""
+        force = self.force
+        if force.rate <= 0:
+            force.start(100.0)
+            self.monitoring = True
+        block = force.read_block(None)
+        want = max(1, round(0.1 * force.rate))
+        if len(block) < want:
+            block = force.read_block(want)
+        return float(np.mean(block.force[-want:]))
+
+    def _stopped(self, reason: str, stop: Callable[[], AxisState]) -> SafeState:
+        """Run a safe stop's instrument calls past the fence; timed and recorded there."""
+        start = time.monotonic()
+        with self.fence.open():
+            safe = SafeState(reason, [stop()], time.monotonic() - start)
+        self.fence.record(safe)
+        return safe
 
     def tare(self, duration: float, monitor_rate: float = 100.0) -> float:
         """Zero the force on ``duration`` s of samples; returns the removed offset (N)."""
@@ -215,20 +264,26 @@ class CompressionRig:
         """Stop every motion at once; never raises (it runs on the way out of faults)."""
         try:
             self.stage.stop(immediate=True)
+        except InstrumentError as exc:  # a frozen or lost instrument: one line, no traceback
+            log.error("stage stop failed: %s: %s", type(exc).__name__, exc)
         except Exception:
             log.exception("stage stop failed")
 
-    def safe_stop(self, reason: str, budget: float = 15.0) -> SafeState:
-        """Stop, read back, retract the plate ``limits.retract_on_fault`` from first touch;
-        returns what was verified. Never raises; every call is bounded (``budget`` s)."""
+    def safe_stop(self, reason: str, budget: float = 15.0, faulted: str = "") -> SafeState:
+        """Stop, read back, retract the plate ``limits.retract_on_fault`` from first touch (or,
+        first touch unknown, until the load reads below :data:`LOADED_FORCE`, or to the end
+        of travel when the ``faulted`` instrument is the force input); returns what was
+        verified. Never raises; every call is bounded (``budget`` s)."""
         limits = self.limits
-        axis = stop_stage(self.stage, self.clock, limits.retract_on_fault, self.first_touch,
-                          limits.fast_speed, limits.acceleration, budget)
-        return SafeState(reason, [axis])
+        force = None if faulted == "force" else self.force_now
+        return self._stopped(reason, lambda: stop_stage(
+            self.stage, self.clock, limits.retract_on_fault, self.first_touch,
+            limits.fast_speed, limits.acceleration, budget, force, LOADED_FORCE))
 
     def close(self) -> None:
-        self.stop_all()
-        _run_all((self.force.stop, self.force.close, self.stage.close, *self.close_hooks))
+        with self.fence.open():  # closing is not a step's cleanup: it always reaches them
+            self.stop_all()
+            _run_all((self.force.stop, self.force.close, self.stage.close, *self.close_hooks))
 
 
 @dataclass
@@ -241,13 +296,35 @@ class ShearRig:
     identities: dict[str, object] = field(default_factory=dict)
     simulated: bool = False
     close_hooks: list[Callable[[], None]] = field(default_factory=list)
+    #: safe stop first: armed by the runner while a step runs (protocols/fence.py)
+    fence: Fence = field(default_factory=Fence, init=False)
 
     kind = "shear"
 
     def __post_init__(self) -> None:
         # every command goes through the rig file's caps (max_speed, gap and overlap)
         if not isinstance(self.rheometer, CappedRheometer):
-            self.rheometer = CappedRheometer(self.rheometer, self.limits.max_overlap)
+            self.rheometer = CappedRheometer(self.rheometer, self.limits.max_overlap,
+                                             self.fence)
+        else:
+            self.rheometer.fence = self.fence
+
+    def time_base(self) -> dict[str, Any]:
+        """How the rheometer's stream is put on the run's clock (run.json's ``time_base``):
+        angle, torque and normal force of a record share the instrument's time of it."""
+        rheo = self.rheometer
+        unc = float(getattr(rheo, "stream_start_uncertainty", math.nan))
+        return {"clock": "the run's clock (s)",
+                "rheometer": TimeMapping(
+                    "rheometer", "stream: t = t0 + the record's instrument time; t0 the middle "
+                    "of the window in which the stream was started", unc,
+                    {"start_uncertainty_s": unc}).as_dict()}
+
+    @property
+    def touch_gap(self) -> float | None:
+        """The gap where the spheres touch, once known (m)."""
+        rheo = self.rheometer
+        return rheo.touch_gap if isinstance(rheo, CappedRheometer) else None
 
     def know_touch_gap(self, touch_gap: float) -> None:
         """From now on refuse gaps more than the overlap limit below ``touch_gap`` (m)."""
@@ -295,9 +372,24 @@ class ShearRig:
     def unload(self, budget: float = 15.0) -> SafeState:
         """Stop the arm and lift it ``lift_on_fault`` (:data:`UNLOAD_DEFAULT` if that is 0);
         returns what was verified."""
-        axis = stop_rheometer(self.rheometer, self.clock,
-                              self.limits.lift_on_fault or UNLOAD_DEFAULT, budget)
-        return SafeState("unload the sample", [axis])
+        return self._stopped("unload the sample", lambda: stop_rheometer(
+            self.rheometer, self.clock, self.limits.lift_on_fault or UNLOAD_DEFAULT, budget,
+            *self._lift_until()))
+
+    def _lift_until(self) -> tuple[Callable[[], float] | None, float]:
+        """With the touch gap unknown, the lift goes on until the normal force reads below
+        :data:`LOADED_FORCE`."""
+        if self.touch_gap is not None:
+            return None, math.inf
+        return self.rheometer.normal_force, LOADED_FORCE
+
+    def _stopped(self, reason: str, stop: Callable[[], AxisState]) -> SafeState:
+        """Run a safe stop's instrument calls past the fence; timed and recorded there."""
+        start = time.monotonic()
+        with self.fence.open():
+            safe = SafeState(reason, [stop()], time.monotonic() - start)
+        self.fence.record(safe)
+        return safe
 
     def zero_gap(self) -> None:
         self.rheometer.zero_gap()
@@ -316,27 +408,34 @@ class ShearRig:
         """Stop every motion at once; never raises (it runs on the way out of faults)."""
         try:
             self.rheometer.stop()
+        except InstrumentError as exc:  # a frozen or lost instrument: one line, no traceback
+            log.error("rheometer stop failed: %s: %s", type(exc).__name__, exc)
         except Exception:
             log.exception("rheometer stop failed")
 
-    def safe_stop(self, reason: str, budget: float = 15.0) -> SafeState:
-        """Stop the arm, read it back, lift it ``limits.lift_on_fault``; returns what was
+    def safe_stop(self, reason: str, budget: float = 15.0, faulted: str = "") -> SafeState:
+        """Stop the arm, read it back, lift it ``limits.lift_on_fault`` (with the touch gap
+        unknown, until the normal force reads below :data:`LOADED_FORCE`); returns what was
         verified. Never raises; every call is bounded (``budget`` s)."""
-        axis = stop_rheometer(self.rheometer, self.clock, self.limits.lift_on_fault, budget)
-        return SafeState(reason, [axis])
+        return self._stopped(reason, lambda: stop_rheometer(
+            self.rheometer, self.clock, self.limits.lift_on_fault, budget, *self._lift_until()))
 
     def close(self) -> None:
-        self.stop_all()
-        _run_all((self.rheometer.close, *self.close_hooks))
+        with self.fence.open():  # closing is not a step's cleanup: it always reaches them
+            self.stop_all()
+            _run_all((self.rheometer.close, *self.close_hooks))
 
 
 def _run_all(closers: tuple[Callable[[], None], ...]) -> None:
     """Call every closer even if some fail (each failure is logged): release everything."""
     for closer in closers:
+        name = getattr(closer, "__qualname__", repr(closer))
         try:
             closer()
+        except InstrumentError as exc:  # a frozen or lost instrument: one line, no traceback
+            log.error("closing: %s failed: %s: %s", name, type(exc).__name__, exc)
         except Exception:
-            log.exception("closing %r failed", closer)
+            log.exception("closing: %s failed", name)
 
 
 Rig = CompressionRig | ShearRig

@@ -14,7 +14,7 @@ the rig's caps, interlocks on every sample, pause at checkpoints, abort at every
 columns streamed to the run directory. A resumed run calls the script again from the top;
 steps the run completed before are not run again, :meth:`Run.step` returns their stored
 results, so a script must ask for the same steps in the same order given the same results
-(it is refused otherwise: :class:`protocols.runner.ReplayMismatch`).
+(it is refused otherwise: :class:`gelrig.protocols.runner.ReplayMismatch`).
 """
 
 from __future__ import annotations
@@ -23,15 +23,18 @@ import dataclasses
 import hashlib
 import inspect
 import logging
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from instrument.errors import ConfigError
-from instrument.fields import Where
-from protocols.procedure import Procedure
-from protocols.spec import (
+from gelrig.instrument.core.errors import ConfigError, shown
+from gelrig.instrument.core.fields import Where
+from gelrig.protocols.origin import origin, user_site
+from gelrig.protocols.procedure import Procedure
+from gelrig.protocols.sample import Sample, parse_sample
+from gelrig.protocols.spec import (
     RIGS,
     Step,
     StepSink,
@@ -40,8 +43,8 @@ from protocols.spec import (
     paper_protocol,
     parse_protocol,
 )
-from protocols.steps import import_file
-from protocols.steps.base import StepDefinition, StepResult
+from gelrig.protocols.steps import KINDS, import_file
+from gelrig.protocols.steps.base import StepDefinition, StepResult
 
 log = logging.getLogger("gelrig.script")
 
@@ -51,7 +54,7 @@ Body = Callable[["Run"], None]
 @dataclass(frozen=True)
 class Script:
     """A script protocol: its function, the rig kind it runs on, its name and file. A
-    :class:`protocols.procedure.Procedure` whose steps are known only as it runs."""
+    :class:`gelrig.protocols.procedure.Procedure` whose steps are known only as it runs."""
 
     function: Body
     rig: str
@@ -62,6 +65,8 @@ class Script:
     #: keyword arguments the function is called with (``gelrig run --param``, a campaign's
     #: ``[params]``); the function's defaults stand for the others
     params: Mapping[str, Any] = field(default_factory=dict)
+    #: the run's sample: steps that need a size (``ramp_hold``'s diameter) take it from here
+    sample: Sample | None = None
 
     def parameters(self) -> dict[str, Any]:
         """The function's own parameters (after ``run``) with their defaults (``None`` when it
@@ -82,6 +87,27 @@ class Script:
                                   f"{', '.join(known) or 'no parameters'}")
         return dataclasses.replace(self, params={**self.params, **values})
 
+    def with_sample(self, sample: Sample) -> Script:
+        """This script measuring ``sample``."""
+        return dataclasses.replace(self, sample=sample)
+
+    def missing(self) -> list[str]:
+        """The function's parameters without a default that were not given."""
+        signature = inspect.signature(self.function)
+        return [name for name, p in list(signature.parameters.items())[1:]
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+                and p.default is inspect.Parameter.empty and name not in self.params]
+
+    def check_params(self) -> None:
+        """A ConfigError naming the first parameter without a default that was not given (a
+        call would end in a TypeError); before anything is built."""
+        missing = self.missing()
+        if missing:
+            name = missing[0]
+            raise ConfigError("script parameter", name, f"required by "
+                              f"{Path(self.source).name} (it has no default); give it as "
+                              f"--param {name}=VALUE (API: params={{{name!r}: ...}})")
+
     @property
     def source(self) -> str:
         return self.path or f"<script {self.function.__qualname__}>"
@@ -96,11 +122,14 @@ class Script:
                                 "description": self.description,
                                 "script": self.path, "entry": self.function.__name__,
                                 "params": dict(self.params)}
+        if self.sample is not None:
+            head["sample"] = self.sample.table()
         if self.path and Path(self.path).is_file():
             head["sha256"] = hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
         return {"protocol": head}
 
     def drive(self, sink: StepSink) -> None:
+        self.check_params()
         self.function(Run(sink, self), **self.params)
 
 
@@ -139,6 +168,11 @@ class Run:
     def rig_kind(self) -> str:
         return self._script.rig
 
+    @property
+    def sample(self) -> Sample | None:
+        """The run's sample (name, sizes in m, material), None when none was given."""
+        return self._script.sample
+
     def step(self, kind: str | StepDefinition[Any, Any, Any] | type, name: str | None = None,
              **params: Any) -> Any:
         """Run the next step and return its typed result (e.g. a ``RampHoldResult``).
@@ -150,7 +184,14 @@ class Run:
         index = self._count
         self._count += 1
         where = Where(f"step[{index}]", self._script.source)
-        built = make_step(kind, name, params, self._script.rig, where)
+        try:
+            built = make_step(kind, name, params, self._script.rig, where, self._script.sample)
+        except ConfigError as exc:  # a bad value, field or kind: refused, like a cap
+            at = origin(exc) or user_site(sys._getframe())
+            field = exc.field.removeprefix(f"[{where.section}] ")
+            self._sink.refuse(_step_name(kind, name),
+                              f"{field} = {shown(exc.value)}: {exc.allowed}"
+                              + (f" (at {at})" if at else ""))
         result = self._sink.step(built)
         self.results.append(result)
         return result
@@ -162,6 +203,15 @@ class Run:
     def log(self, message: str) -> None:
         """A line in the run's log (RUN_DIR/gelrig.log)."""
         log.info("%s", message)
+
+
+def _step_name(kind: object, name: object) -> str:
+    """What a step asked for is called in a refusal's line: its name, else its kind's."""
+    if isinstance(name, str):
+        return name
+    definition = getattr(kind, "kind", kind)
+    known = KINDS.get(definition) if isinstance(definition, str) else None
+    return (known.description or known.kind) if known is not None else str(definition)
 
 
 def load_script(path: str | Path, entry: str | None = None) -> Script:
@@ -215,7 +265,10 @@ def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path
     if not isinstance(params, Mapping):
         raise ConfigError("protocol.params", params, "a table of the script's parameters",
                           source)
-    return script.with_params(**params), notes
+    script = script.with_params(**params)
+    if "sample" in head:
+        script = script.with_sample(parse_sample(head["sample"], source))
+    return script, notes
 
 
 def procedure_from_table(table: Mapping[str, Any], source: str,

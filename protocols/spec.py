@@ -7,6 +7,10 @@ Loading validates everything before anything moves; errors name the file, the fi
     name = "Paper compression"
     rig = "compression"          # or "shear"
 
+    [sample]                     # the run's sample (docs/decisions/0280)
+    name = "PDMS sphere A3"
+    diameter = "12 mm"
+
     [[step]]
     kind = "compression_contact_search"
     name = "find the sphere"
@@ -16,15 +20,19 @@ Loading validates everything before anything moves; errors name the file, the fi
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NoReturn, Protocol
 
-from instrument.errors import ConfigError
-from instrument.fields import Where, read_toml
-from protocols.steps import KINDS, StepDefinition, load_step_modules
-from protocols.steps.base import StepParams, StepResult
+from gelrig.instrument.core.errors import ConfigError, shown
+from gelrig.instrument.core.fields import FieldList, Where, read_toml, written_unit
+from gelrig.protocols.bounds import MAX_STEPS
+from gelrig.protocols.sample import HOW_TO_GIVE, Sample, parse_sample
+from gelrig.protocols.steps import KINDS, StepDefinition, load_step_modules
+from gelrig.protocols.steps.base import StepParams, StepResult
 
 RIGS = ("compression", "shear")
 #: Longest step name: names become file names (``steps/NN_name.h5``).
@@ -38,6 +46,11 @@ class Step:
     definition: StepDefinition[Any, Any, Any]
     name: str
     params: StepParams
+    #: the parameters as written (unit strings kept): what ``gelrig plan`` shows each
+    #: effective value in
+    given: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    #: the keys whose values came from the run's sample
+    sampled: tuple[str, ...] = ()
 
     @property
     def kind(self) -> str:
@@ -52,6 +65,11 @@ class StepSink(Protocol):
 
     def checkpoint(self) -> None: ...
 
+    def refuse(self, name: str, problem: str) -> NoReturn:
+        """End the run: the next step (``name``) is not valid and is refused before it
+        moves (``problem``: the one line saying why)."""
+        ...
+
 
 @dataclass(frozen=True)
 class ProtocolSpec:
@@ -62,6 +80,13 @@ class ProtocolSpec:
     steps: tuple[Step, ...]
     table: dict[str, Any]
     source: str = "<protocol>"
+    #: the run's sample (the file's ``[sample]`` table), None when the file states none
+    sample: Sample | None = None
+
+    def with_sample(self, sample: Sample) -> ProtocolSpec:
+        """This protocol measuring ``sample`` instead of the file's: read again, so every
+        step that takes a size from the sample takes this one."""
+        return parse_protocol({**self.table, "sample": sample.table()}, self.source)
 
     def drive(self, sink: StepSink) -> None:
         """Send each step to ``sink`` in the file's order (a :class:`Procedure`)."""
@@ -74,10 +99,12 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
     head = table.get("protocol")
     if not isinstance(head, dict):
         raise ConfigError("[protocol]", "missing", "a [protocol] table with name and rig", source)
-    unknown = set(table) - {"protocol", "step"}
+    unknown = set(table) - {"protocol", "sample", "step"}
     if unknown:
         key = sorted(unknown)[0]
-        raise ConfigError(key, "?", "unknown table; allowed: [protocol], [[step]]", source)
+        raise ConfigError(key, "?", "unknown table; allowed: [protocol], [sample], [[step]]",
+                          source)
+    sample = parse_sample(table["sample"], source) if "sample" in table else None
     name = head.get("name")
     if not isinstance(name, str) or not name.strip():
         raise ConfigError("[protocol] name", name, "a non-empty string", source)
@@ -97,21 +124,26 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
     raw_steps = table.get("step")
     if not isinstance(raw_steps, list) or not raw_steps:
         raise ConfigError("[[step]]", "missing", "at least one [[step]] table", source)
+    if len(raw_steps) > MAX_STEPS:  # before reading any: a rehearsal takes ~0.5 s a step
+        raise ConfigError("[[step]]", f"{len(raw_steps):,} tables", f"at most {MAX_STEPS} "
+                          "steps per protocol; split it into several protocols", source)
     steps = []
     for i, raw in enumerate(raw_steps):
         where = Where(f"step[{i}]", source)
         if not isinstance(raw, dict):
             raise where.error("", raw, "a [[step]] table")
         kind = raw.get("kind")
-        steps.append(make_step(kind, raw.get("name"), raw, rig, where))
-    return ProtocolSpec(name, rig, tuple(steps), table, source)
+        steps.append(make_step(kind, raw.get("name"), raw, rig, where, sample))
+    return ProtocolSpec(name, rig, tuple(steps), table, source, sample)
 
 
 def make_step(kind: object, name: object, params: Mapping[str, Any], rig: str,
-              where: Where) -> Step:
+              where: Where, sample: Sample | None = None) -> Step:
     """One validated step: ``kind`` (a registered kind's name, or a step definition),
     ``name`` (default: the kind's description), ``params`` as a protocol file's table holds
-    them (unit strings or SI numbers; ``kind`` and ``name`` keys are ignored)."""
+    them (unit strings or SI numbers; ``kind`` and ``name`` keys are ignored). A size the
+    step takes from the run's ``sample`` (``diameter``) is filled in from it; one neither
+    given nor in the sample is a ConfigError naming the field (never a paper value)."""
     if isinstance(kind, type) and issubclass(kind, StepDefinition):
         definition: StepDefinition[Any, Any, Any] | None = KINDS.get(kind.kind)
         if definition is None or type(definition) is not kind:
@@ -134,7 +166,76 @@ def make_step(kind: object, name: object, params: Mapping[str, Any], rig: str,
         raise where.error("name", shown.encode("unicode_escape").decode(),
                           f"printable, at most {MAX_STEP_NAME} characters (the step's data "
                           "file is named after it)")
-    return Step(definition, step_name, definition.parse(params, where))
+    filled = with_sample_sizes(definition, params, sample, where)
+    return Step(definition, step_name, definition.parse(filled, where), dict(params),
+                tuple(k for k in filled if k not in params))
+
+
+def with_sample_sizes(definition: StepDefinition[Any, Any, Any], params: Mapping[str, Any],
+                      sample: Sample | None, where: Where) -> Mapping[str, Any]:
+    """``params`` with each size the step takes from the sample filled in; a size the step
+    states itself must equal the sample's (one sphere per run)."""
+    if not definition.sample_fields:
+        return params
+    specs = {spec.key: spec for spec in definition.Params.specs().values()}
+    out = dict(params)
+    for key, attr in definition.sample_fields.items():
+        size = sample.size(attr) if sample is not None else None
+        if params.get(key) is not None:
+            given = specs[key].parse(params[key], where)
+            if size is not None and not math.isclose(float(given), size, rel_tol=1e-9):
+                raise where.error(key, params[key], f"differs from the sample's {attr} "
+                                  f"({size * 1e3:g} mm); state the size once, in the sample")
+            continue
+        if size is None:
+            raise where.error(key, "missing", f"the sample's {attr} is needed and none was "
+                              f"given; give {HOW_TO_GIVE.format(key=attr)} (or {key} in the "
+                              "step)")
+        out[key] = size
+    return out
+
+
+def effective_params(step: Step) -> list[str]:
+    """Every parameter ``step`` runs with, defaults included, as people read it: in the unit
+    it was written in (``speed = 0.3 mm/s``), else the field's display unit; a value not
+    given is marked ``(default)``, one taken from the run's sample ``(sample)``."""
+    given = step.given
+    out = []
+    for name, spec in step.params.specs().items():
+        key = spec.key
+        value = getattr(step.params, name)
+        raw = given.get(key)
+        written = key in given
+        unit = getattr(spec, "unit", "")
+        if isinstance(spec, FieldList):
+            unit = spec.item.unit
+            first = raw[0] if written and isinstance(raw, list | tuple) and raw else None
+            show = written_unit(first) or spec.item.display or unit
+        else:
+            show = (written_unit(raw) if written else None) or getattr(spec, "display", "") \
+                or unit
+        if value is None:
+            text = "none"
+        elif isinstance(value, bool | str):
+            text = shown(value)
+        elif isinstance(value, tuple):
+            text = "[" + ", ".join(_number(v, unit, show) for v in value) + "]"
+        else:
+            text = _number(float(value), unit, show)
+        mark = "" if written else " (sample)" if key in step.sampled else " (default)"
+        out.append(f"{key} = {text}{mark}")
+    return out
+
+
+def _number(value: float, unit: str, show: str) -> str:
+    from gelrig.instrument.core.units import convert
+
+    if show and unit and show != unit:
+        try:
+            return f"{convert(value, unit, show):.6g} {show}"
+        except ConfigError:
+            pass
+    return f"{value:.6g} {unit}".rstrip()
 
 
 def load_protocol(path: str | Path) -> ProtocolSpec:

@@ -5,7 +5,10 @@ as surely as the data (the reading thread waits, so simulated time does not adva
 wall time goes on. Anything the runner publishes counts as a sign of life (samples, progress,
 a step starting); a pause disarms it until the run resumes. On expiry it asks the run to end
 as a fault (:meth:`RunControl.fail`); if the run's thread is stuck inside an instrument call it
-cannot see that, and the owner of the run (the CLI) ends it (see gelrig/session.py).
+cannot see that, and the owner of the run (the CLI) ends it (see protocols/host.py). Its line
+says what the run's thread was doing when it expired, from the thread's current frame:
+``stuck in an instrument call (usb6001/sensor.py:310 in read)``, or ``the script's own code
+(creep.py:27) has not returned`` (a step kind of the user's in a loop of its own).
 """
 
 from __future__ import annotations
@@ -15,8 +18,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from protocols.control import RunControl
-from protocols.events import Event, RunState, StateChanged
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import Event, RunState, StateChanged
+from gelrig.protocols.origin import stuck_words, thread_site
 
 log = logging.getLogger(__name__)
 
@@ -24,13 +28,16 @@ KIND = "WatchdogExpired"
 
 
 class Watchdog:
-    """Subscriber + thread: ``control.fail`` after ``timeout`` s (wall) without an event."""
+    """Subscriber + thread: ``control.fail`` after ``timeout`` s (wall) without an event;
+    ``thread`` is the run's (what it was doing goes into the message)."""
 
     def __init__(self, control: RunControl, timeout: float,
-                 wall: Callable[[], float] = time.monotonic):
+                 wall: Callable[[], float] = time.monotonic,
+                 thread: threading.Thread | None = None):
         self.control = control
         self.timeout = timeout
         self.wall = wall
+        self.thread = thread
         self.expired = False
         self._last = wall()
         self._paused = False
@@ -73,8 +80,9 @@ class Watchdog:
         silent = self.wall() - self._last
         if silent > self.timeout:
             self.expired = True
-            message = (f"watchdog: no data for {silent:.0f} s (limit {self.timeout:g} s); "
-                       "an instrument may be frozen")
+            shown = f"{silent:.1f}" if silent < 10 else f"{silent:.0f}"
+            message = (f"watchdog: no data for {shown} s (limit {self.timeout:g} s); "
+                       f"{stuck_words(*thread_site(self.thread))}")
             log.error("%s", message)
             self.control.fail(KIND, message)
         return self.expired

@@ -1,10 +1,15 @@
 """Command-line options of the served simulators (``gelrig sim serve NAME``), light to import.
 
 ``gelrig`` builds its whole parser on every call, so the options are declared here, apart from
-the simulators (numpy, scipy, grpc), which are imported only when one is served. Each serve
-module re-exports its ``add_arguments`` from here; defaults that come from the physics (the
-paper's hold depth, the simulated load cell's noise and offset) are ``None`` here and resolved
-by the serve module when it runs.
+the simulators (numpy, scipy, grpc), which are imported only when one is served; the
+configurations the options come from are imported when the options are added (``gelrig``
+adds them when ``sim serve NAME`` is parsed or asked for its help). Each serve module
+re-exports its ``add_arguments`` from here. The options of the simulated hardware and
+sample are the simulators' configuration fields (``simulators/*/config.py``, the rig file's
+``[simulator]`` truth): names, units, defaults and help come from the one declaration of each
+(:mod:`gelrig.instrument.core.options`), so ``--help`` shows the defaults the rig file
+documents; the serve module reads them back with
+:func:`~gelrig.instrument.core.options.config_from_options`.
 """
 
 from __future__ import annotations
@@ -16,6 +21,12 @@ from typing import NamedTuple
 #: Port of the NI gRPC Device Server's default configuration.
 USB6001_PORT = 31763
 
+#: The MCR 501 simulator's fields offered as options: the sample (the rig file's
+#: ``[simulator]`` truth, :class:`~gelrig.instrument.physics.truth.ShearSample`) and the arm
+#: (the ``[rheometer]`` table's).
+MCR501_OPTIONS = ("r1", "r2", "mu", "lower_angle", "touch_gap", "seed", "unloading",
+                  "torque_noise", "normal_force_noise", "carry_history", "arm")
+
 
 #: Which transport each public KDC101 client can use (shown by ``--help`` and in the README).
 KDC101_CLIENTS = (
@@ -26,6 +37,8 @@ KDC101_CLIENTS = (
     "driver works on all (socket://HOST:PORT, the pty path, or kdc101sim://NAME in process). "
     "One client at a time: a second TCP client is closed at once, as a busy serial port."
 )
+#: Values are SI numbers or numbers with a unit, as in a rig file.
+_UNITS = "values: SI numbers, or with a unit as in a rig file ('0.1 mm', '45 deg')"
 
 
 def kdc101_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,18 +52,13 @@ def kdc101_arguments(parser: argparse.ArgumentParser) -> None:
                        help="create a pseudo-terminal; for thorlabs-apt-device and gelrig "
                             "(not pylablib: RTS fails on a pty)")
     parser.add_argument("--clock", default="real", help="real or paced:K (default real)")
-    parser.add_argument("--serial", type=int, default=27000001, help="serial number (27xxxxxx)")
-    parser.add_argument("--counts-per-mm", type=float, default=34554.96,
-                        help="the actuator's true encoder scale")
-    parser.add_argument("--travel", default="25 mm", help="actuator travel")
-    parser.add_argument("--start-position", default="5 mm",
-                        help="extension from the home switch at power-on")
-    parser.add_argument("--home-offset", default="0.1 mm", help="home position past the switch")
-    parser.add_argument("--direction", default="forward_is_negative",
-                        choices=("forward_is_negative", "forward_is_positive"),
-                        help="what APT 'forward' means (default: a KDC101's, forward_is_negative)")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many real seconds (default: until interrupted)")
+    from gelrig.instrument.core.options import add_options
+    from gelrig.simulators.kdc101.config import SimConfig
+
+    add_options(parser.add_argument_group("the simulated controller and actuator", _UNITS),
+                SimConfig)
 
 
 def usb6001_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,21 +67,13 @@ def usb6001_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", type=int, default=USB6001_PORT,
                         help=f"TCP port (0: any free port; default {USB6001_PORT})")
     parser.add_argument("--clock", default="real", help="real, paced:K or virtual")
-    parser.add_argument("--first-touch", default="2 mm",
-                        help="stage position of the sphere's top (default 2 mm)")
-    parser.add_argument("--plate-start", default="0 mm",
-                        help="plate position at start (default 0 mm)")
-    parser.add_argument("--ramp-speed", default="0 m/s",
-                        help="plate speed into the sphere (default 0: the plate stays still)")
-    parser.add_argument("--depth", default=None,
-                        help="overlap where the ramp stops and the hold begins (default 6 %%)")
-    parser.add_argument("--noise", default=None, help="rms input noise")
-    parser.add_argument("--offset", default=None, help="conditioner zero offset")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed")
-    parser.add_argument("--buffer-size", type=int, default=None,
-                        help="acquisition buffer in samples (default: DAQmx's rule)")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many real seconds (default: until interrupted)")
+    from gelrig.instrument.core.options import add_options
+    from gelrig.simulators.usb6001.config import Standalone
+
+    add_options(parser.add_argument_group("the plate, the sphere and the input", _UNITS),
+                Standalone)
 
 
 def mcr501_arguments(parser: argparse.ArgumentParser) -> None:
@@ -81,14 +81,14 @@ def mcr501_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
     parser.add_argument("--port", type=int, default=5025, help="TCP port (0: any free port)")
     parser.add_argument("--clock", default="real", help="real or paced:K (K x real time)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    parser.add_argument(
-        "--lower-angle", default="0.8", help="lower sphere position (rad or '45 deg')"
-    )
-    parser.add_argument("--touch-gap", default="3 mm", help="gap where the spheres touch on top")
     parser.add_argument(
         "--duration", type=float, default=float("inf"), help="stop after this many real seconds"
     )
+    from gelrig.instrument.core.options import add_options
+    from gelrig.simulators.mcr501.config import SimConfig
+
+    add_options(parser.add_argument_group("the sample (the rig file's [simulator] table) and "
+                                          "the arm", _UNITS), SimConfig, MCR501_OPTIONS)
 
 
 class ServedSimulator(NamedTuple):
@@ -105,11 +105,11 @@ class ServedSimulator(NamedTuple):
 SERVED = {
     "kdc101": ServedSimulator(
         "Serve a simulated KDC101 + Z825B on its APT wire protocol over TCP or a pty.",
-        kdc101_arguments, "simulators.kdc101.serve"),
+        kdc101_arguments, "gelrig.simulators.kdc101.serve"),
     "usb6001": ServedSimulator(
         "Simulated NI USB-6001 (load-cell input) served as an NI gRPC Device Server.",
-        usb6001_arguments, "simulators.usb6001.serve"),
+        usb6001_arguments, "gelrig.simulators.usb6001.serve"),
     "mcr501": ServedSimulator(
         "Serve a simulated MCR 501 rheometer (two hydrogel spheres on the shear arm) over TCP.",
-        mcr501_arguments, "simulators.mcr501.serve"),
+        mcr501_arguments, "gelrig.simulators.mcr501.serve"),
 }

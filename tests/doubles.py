@@ -1,7 +1,9 @@
 """Small fakes of the instrument contracts, so step logic has fast unit tests.
 
-They meet :class:`instrument.stage.Stage`, :class:`instrument.loadcell.ForceSensor` and
-:class:`instrument.rheometer.Rheometer` in SI units on a :class:`VirtualClock`, with the
+They meet :class:`gelrig.instrument.contracts.stage.Stage`,
+:class:`gelrig.instrument.contracts.loadcell.ForceSensor` and
+:class:`gelrig.instrument.contracts.rheometer.Rheometer` in SI units on a :class:`VirtualClock`,
+with the
 least physics that makes a step's logic meaningful: a plate moving at constant speed into an
 elastic Hertz sphere (no relaxation unless given), a rheometer arm sweeping an upper sphere
 over a lower one with an elastic normal force and Coulomb friction. No wire, no thread, no
@@ -19,14 +21,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from instrument.clock import VirtualClock
-from instrument.contact import FloatArray, Material, hertz_prefactor
-from instrument.errors import Disconnected, InstrumentTimeout, LimitError
-from instrument.identity import Identity
-from instrument.loadcell import ForceBlock, LoadCellChain
-from instrument.rheometer import RheometerConfig, RheometerStatus, StreamPoint
-from instrument.stage import StageConfig, StageStatus
-from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
+from gelrig.instrument.contracts.loadcell import ForceBlock, LoadCellChain
+from gelrig.instrument.contracts.rheometer import RheometerConfig, RheometerStatus, StreamPoint
+from gelrig.instrument.contracts.stage import StageConfig, StageStatus
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import Disconnected, InstrumentTimeout, LimitError
+from gelrig.instrument.core.identity import Identity
+from gelrig.instrument.physics.contact import FloatArray, Material, hertz_prefactor
+from gelrig.protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
 
 #: Longest a frozen fake blocks a call (s, wall): every wait in the tests is bounded.
 FREEZE_LIMIT = 30.0
@@ -36,13 +38,15 @@ class Faults:
     """What a test makes a fake do wrong: ``freeze()`` makes every call block (as a frozen
     server does) until ``thaw()`` or :data:`FREEZE_LIMIT`; ``unreachable`` makes every call
     raise Disconnected; ``fail_stop`` makes only the stop raise; ``fail_at`` makes calls raise
-    Disconnected from that clock time on."""
+    Disconnected from that clock time on; ``freeze_at`` freezes the first call at or after
+    that clock time."""
 
     def __init__(self, name: str) -> None:
         self.name = name
         self.unreachable = False
         self.fail_stop = False
         self.fail_at: float | None = None
+        self.freeze_at: float | None = None
         self.frozen = threading.Event()
         self.blocked = threading.Event()  # set while a call is blocked by a freeze
         self._thawed = threading.Event()
@@ -57,6 +61,9 @@ class Faults:
 
     def gate(self, now: float, stop: bool = False) -> None:
         """Called first by every call of the fake."""
+        if self.freeze_at is not None and now >= self.freeze_at:
+            self.freeze_at = None
+            self.freeze()
         if self.frozen.is_set():
             self.blocked.set()
             self._thawed.wait(FREEZE_LIMIT)
@@ -134,6 +141,10 @@ class FakeStage:
     def move_velocity(self, direction: int) -> None:
         end = self.config.max_position_m if direction > 0 else self.config.min_position_m
         self._go(end)
+
+    def keep_alive(self) -> None:
+        """Nothing to renew: the fake's moves are not segmented (ADR 0201)."""
+        self.faults.gate(self.clock.now())
 
     def stop(self, immediate: bool = True) -> None:
         self.faults.gate(self.clock.now(), stop=True)
@@ -361,6 +372,10 @@ class FakeRheometer:
 
     def hold(self) -> None:
         self.stop()
+
+    def keep_alive(self) -> None:
+        """Nothing to renew: the fake's rotations are not time-limited (ADR 0201)."""
+        self._advance()
 
     def angle(self) -> float:
         self._advance()

@@ -8,6 +8,8 @@ ways until a fault is set for the server-to-driver direction (the replies):
 - ``swallow()``: replies vanish (the instrument looks silent, the connection stays up);
 - ``delay(s)``: each reply chunk is held back ``s`` seconds;
 - ``close()``: every connection is closed now, and new ones are refused (accepted and closed);
+- ``drop()``: every connection is closed now; new ones are relayed (a cable pulled and
+  plugged back, the instrument up all along);
 - ``heal()``: back to relaying.
 
 Bounded by construction: it listens on 127.0.0.1 only, every wait has a timeout, and it stops
@@ -78,6 +80,10 @@ class FaultProxy:
     def close(self) -> None:
         """Drop every open connection now and refuse new ones until :meth:`heal`."""
         self._refuse = True
+        self.drop()
+
+    def drop(self) -> None:
+        """Drop every open connection now; new ones are accepted and relayed."""
         with self._lock:
             pairs, self._pairs = self._pairs, []
         for a, b in pairs:

@@ -7,6 +7,10 @@ SHORT_COMPRESSION = """
 name = "short compression"
 rig = "compression"
 
+[sample]
+name = "the simulated rig's sphere"
+diameter = "18.63 mm"
+
 [[step]]
 kind = "compression_contact_search"
 confirm = 0

@@ -3,7 +3,7 @@
 Run: python docs/figures/live_fit_figure.py  (writes docs/figures/live_fit.png)
 
 One simulated 3000 s hold at 100 Hz of each of the paper's materials with the rig's force
-noise (instrument/live_fit_sim.py), refitted as the ``ramp_hold`` step does. Top row: tau_1
+noise (instrument/analysis/live_fit_sim.py), refitted as the ``ramp_hold`` step does. Top row: tau_1
 (and, in the shell, tau_2) with a band of one standard error; the dashed line is the truth.
 Bottom row: each tau's relative standard error now (solid) and forecast at 3000 s (dotted),
 the 2 % target, and where the adaptive hold (``until = 0.02``; the shell with
@@ -20,9 +20,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from instrument import paper
-from instrument.live_fit import StopRule
-from instrument.live_fit_sim import simulate_hold
+from gelrig.instrument.analysis.live_fit import StopRule
+from gelrig.instrument.analysis.live_fit_sim import simulate_hold
+from gelrig.instrument.physics import paper
 
 OUT = Path(__file__).with_name("live_fit.png")
 TARGET = 0.02

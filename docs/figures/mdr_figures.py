@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from instrument import paper
-from instrument.contact import FloatArray, NormalContact
-from instrument.mdr import MdrContact
-from instrument.plots import save_figure
-from instrument.sliding import SlidingGeometry, resolve_forces
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.contact import FloatArray, NormalContact
+from gelrig.instrument.physics.mdr import MdrContact
+from gelrig.instrument.physics.sliding import SlidingGeometry, resolve_forces
+from gelrig.instrument.reports.plots import save_figure
 
 HERE = Path(__file__).resolve().parent
 GEOMETRY = SlidingGeometry(paper.R1_SHEAR, paper.R2_SHEAR, paper.DELTA_MAX_SHOWN)

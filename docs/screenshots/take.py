@@ -21,9 +21,9 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication
 
 from gelrig.commands.gui import make_services
-from gui.mainwindow import MainWindow
-from protocols.rigfile import default_rig
-from protocols.spec import paper_protocol
+from gelrig.gui.mainwindow import MainWindow
+from gelrig.protocols.rigfile import default_rig
+from gelrig.protocols.spec import paper_protocol
 
 
 def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str = "8") -> None:
@@ -39,7 +39,7 @@ def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str =
         window = MainWindow(make_services(default_rig(kind), math.inf, Path(runs)))
         window.show()
         window.start()
-        pump(lambda: window.session.rig is not None, 60)
+        pump(lambda: window.desk.rig is not None, 60)
         pump(lambda: False, 1.0)
         if mode != "idle":
             path = paper_protocol(kind)
@@ -51,12 +51,12 @@ def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str =
             if mode == "running":
                 pump(lambda: False, float(seconds))
             else:
-                pump(lambda: not window.session.running, 900)
+                pump(lambda: not window.desk.running, 900)
                 pump(lambda: False, 1.0)
         window.grab().save(out)
-        if window.session.running:
-            window.session.abort("screenshot taken")
-            pump(lambda: not window.session.running, 60)
+        if window.desk.running:
+            window.desk.abort("screenshot taken")
+            pump(lambda: not window.desk.running, 60)
         window.close()
 
 

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
-from instrument.errors import FramingError
+from gelrig.instrument.core.errors import FramingError
 
 HOST = 0x01
 CONTROLLER = 0x50  # a stand-alone USB controller (K-Cube)

@@ -6,7 +6,9 @@ I/O, ``open()`` (or ``with``) connects (ADR 0050). Every wait goes through the i
 bad bytes are skipped (the framer resynchronises) and a lost reply is asked for once more,
 within the same reply deadline (``StageConfig.reply_timeout_s``, ADR 0060); timeouts, device
 error replies and a vanished port raise typed errors, and any fault while the stage may be
-moving (Ctrl-C included) first commands MOT_MOVE_STOP.
+moving (Ctrl-C included) first commands MOT_MOVE_STOP. A move that would last longer than
+``StageConfig.motion_bound_s`` goes out as bounded segments renewed by every later request
+(ADR 0201), so the stage stops by itself within that bound if gelrig dies.
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ from contextlib import contextmanager, suppress
 import serial
 from serial.serialutil import SerialBase, SerialException
 
-from drivers.kdc101 import payloads as pl
-from drivers.kdc101.apt import (
+from gelrig.drivers.kdc101 import payloads as pl
+from gelrig.drivers.kdc101.apt import (
     CHANNEL,
     AptFramer,
     AptFramingError,
@@ -29,24 +31,44 @@ from drivers.kdc101.apt import (
     encode,
     message_name,
 )
-from instrument.clock import Clock, RealClock
-from instrument.errors import (
+from gelrig.drivers.kdc101.segments import BoundedMove, SegmentPlan
+from gelrig.instrument.contracts.stage import StageConfig, StageStatus
+from gelrig.instrument.contracts.stop_first import stop_on_fault
+from gelrig.instrument.core.clock import Clock, RealClock
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
     GelrigError,
     InstrumentError,
     InstrumentTimeout,
+    NotSent,
 )
-from instrument.identity import Identity
-from instrument.safety import stop_on_fault
-from instrument.stage import StageConfig, StageStatus
+from gelrig.instrument.core.identity import Identity
+from gelrig.instrument.core.stage_path import StagePath
+from gelrig.instrument.core.timebase import PeriodicArrivals
 
 BAUD = 115200
 COMPLETIONS = {MsgId.MOT_MOVE_COMPLETED, MsgId.MOT_MOVE_STOPPED, MsgId.MOT_MOVE_HOMED}
 KEEPALIVE_PERIOD_S = 0.5  # the controller wants an ack at least once a second
 SOFT_LIMIT_STOP_PROFILED = 3  # LIMSWITCHPARAMS software-limit mode
+#: Messages that end (or replace) any motion: a segmented move is not renewed after them.
+_ENDS_SEGMENT = frozenset({MsgId.MOT_MOVE_STOP, MsgId.MOT_MOVE_HOME,
+                           MsgId.MOD_SET_CHANENABLESTATE})
 ARRIVAL_TOLERANCE_COUNTS = 2
+#: A position report disagreeing with the commanded path by more than this is flagged.
+PATH_TOLERANCE_COUNTS = 6
+#: A status update whose window (narrowed by the stream's period, PeriodicArrivals) is wider
+#: than this (s) is not taken as a report: it says little of when the stage was there.
+UPDATE_WINDOW_MAX_S = 0.05
+#: The status updates' period (APT document: "every 100 msec") and its relative
+#: uncertainty (UNVERIFIED: the controller's crystal and firmware loop).
+UPDATE_PERIOD_S = 0.1
+UPDATE_PERIOD_TOLERANCE = 1e-3
+#: Longest wait (s) for the stage to read back stopped after a stop sent while a request is
+#: unanswered (a silent controller): the stop goes out at once, and a silent controller must
+#: not add a whole reply timeout to the way out (ADR 0060).
+SILENT_STOP_WAIT_S = 0.5
 #: Requests (with their reply) that the driver may send to resynchronise after a request went
 #: unanswered: harmless reads, each with a reply id of its own. APT replies carry no request
 #: id, so a late reply is told from a fresh one by its place before the probe's reply.
@@ -71,7 +93,9 @@ class KDC101:
             is not open yet, e.g. made with ``do_not_open=True``).
         config: calibration, software limits and timing (``StageConfig``).
         clock: what every wait goes through (the simulator's clock in virtual time).
-        status_updates: ask for status messages every 100 ms (and keep them alive).
+        status_updates: ask for status messages every 100 ms (and keep them alive), each
+            a position report to :attr:`path` within its arrival window; default the
+            configuration's ``status_updates``.
     """
 
     def __init__(
@@ -80,7 +104,7 @@ class KDC101:
         config: StageConfig | None = None,
         clock: Clock | None = None,
         *,
-        status_updates: bool = False,
+        status_updates: bool | None = None,
     ):
         self.config = config or StageConfig()
         self.clock: Clock = clock or RealClock()
@@ -93,15 +117,35 @@ class KDC101:
         self.stale_replies = 0  # late replies dropped by a resynchronisation
         self.rts_supported = True
         self._maybe_moving = False
-        self._status_updates = status_updates
+        #: The segmented move in progress (ADR 0201), renewed by the next request when due.
+        self._segment: BoundedMove | None = None
+        self._renewing = False
+        self.renewals = 0  # segments renewed (diagnostics)
+        self._status_updates = (self.config.status_updates if status_updates is None
+                                else status_updates)
+        #: When the input was last found empty (no byte waiting, no partial frame), and the
+        #: window [opened, read] in which the bytes of the latest chunk read arrived.
+        self._empty_at = -float("inf")
+        self._drained_at: float | None = None
+        self._arrival = (-float("inf"), -float("inf"))
+        self.status_reports = 0  # status updates taken as position reports
+        self.update_times = PeriodicArrivals(UPDATE_PERIOD_S, UPDATE_PERIOD_TOLERANCE)
+        self._errors_seen = 0
         self._last_ack = -1e300
         self._last_update = -1e300
         self.last_status_update: pl.DcStatus | None = None
         self._port_timeout: float | None = None
+        self._reply_cap = float("inf")  # a shorter reply deadline in force (s), see stop()
+        self.reopens = 0  # new links opened after a lost one (reopen())
         self._given: str | SerialBase = port
         self._link: SerialBase | None = None
         self.address = port if isinstance(port, str) else str(port.port)
         self.identity: Identity | None = None
+        #: The stage's path on the clock: every move and stop commanded, every position read
+        #: (with the window it was taken in), for positions between reports (issue 24).
+        self.path = StagePath(tolerance=PATH_TOLERANCE_COUNTS / (self.config.counts_per_mm * 1e3))
+        self.max_velocity_m_s = self.config.max_velocity_m_s
+        self.acceleration_m_s2 = self.config.acceleration_m_s2
 
     # ---- lifecycle --------------------------------------------------------------------
     @property
@@ -115,10 +159,7 @@ class KDC101:
         """
         if self._link is not None:
             return self
-        self._link = self._connect()
-        self._framer.clear()
-        self._unanswered.clear()
-        self._port_timeout = None
+        self._new_link()
         try:
             self._open_sequence()
             self.identity = self.identify()
@@ -127,6 +168,38 @@ class KDC101:
         except BaseException:
             self._close_port()
             raise
+        return self
+
+    def _new_link(self) -> None:
+        """Connect to the address with nothing of an earlier link left over (framer,
+        unanswered requests, the port's timeout)."""
+        self._link = self._connect()
+        self._framer.clear()
+        self._unanswered.clear()
+        self._port_timeout = None
+        self._empty_at = self.clock.now()
+        self.update_times.restart()
+
+    def reopen(self) -> KDC101:
+        """Close the link (lost or not) and open a new one to the same address: the open
+        sequence and identification, not the configuration (the controller keeps its
+        settings). For the safe stop after a lost link; InstrumentError if another
+        controller answers there."""
+        before = self.identity
+        self._close_port()
+        self._new_link()
+        try:
+            self._open_sequence()
+            identity = self.identify()
+        except BaseException:
+            self._close_port()
+            raise
+        if before is not None and identity.serial != before.serial:
+            self._close_port()
+            raise InstrumentError(f"KDC101 at {self.address}: a new link reached serial "
+                                  f"{identity.serial}, not {before.serial}")
+        self.identity = identity
+        self.reopens += 1
         return self
 
     def _connect(self) -> SerialBase:
@@ -186,10 +259,12 @@ class KDC101:
 
     # ---- bytes ------------------------------------------------------------------------
     def _send(self, msg: Message) -> None:
+        if msg.msg_id in _ENDS_SEGMENT:
+            self._segment = None  # a stop, homing or disable ends any segmented move first
         try:
             self._port.write(encode(msg))
         except (SerialException, OSError, ValueError) as exc:
-            raise Disconnected(f"KDC101 at {self.address}: write failed: {exc}") from exc
+            raise NotSent(f"KDC101 at {self.address}: write failed: {exc}") from exc
 
     def _read_chunk(self, deadline: float) -> None:
         remaining = deadline - self.clock.now()
@@ -198,15 +273,23 @@ class KDC101:
         if self._port_timeout != remaining:
             self._port.timeout = remaining
             self._port_timeout = remaining
+        opened = self._empty_at
         try:
             size = max(1, self._port.in_waiting)
             chunk = self._port.read(size)
+            now = self.clock.now()
+            if chunk:
+                self._framer.feed(chunk)
+                self._arrival = (opened, now)
+                # drained if nothing more waits: confirmed in _await once the framer holds no
+                # partial frame
+                self._drained_at = now if not self._port.in_waiting else None
         except (SerialException, OSError, ValueError) as exc:
             raise Disconnected(f"KDC101 at {self.address}: read failed: {exc}") from exc
-        if chunk:
-            self._framer.feed(chunk)
-        else:
+        if not chunk:
             self.clock.sleep_until(deadline)  # the port waited; keep the clock in step
+            if not self._framer.pending:
+                self._empty_at = self.clock.now()
 
     def _await(self, wanted: Callable[[Message], bool], deadline: float) -> Message | None:
         """The next wanted message before ``deadline`` (clock time), or None.
@@ -222,6 +305,8 @@ class KDC101:
                 self.framing_errors += 1
                 continue
             if msg is None:
+                if self._drained_at is not None and not self._framer.pending:
+                    self._empty_at, self._drained_at = self._drained_at, None
                 if self.clock.now() >= deadline:
                     return None
                 self._read_chunk(deadline)
@@ -237,10 +322,31 @@ class KDC101:
             if msg.msg_id == MsgId.MOT_GET_DCSTATUSUPDATE and msg.data is not None:
                 self.last_status_update = pl.DcStatus.unpack(msg.data)
                 self._last_update = self.clock.now()
+                self._status_report(self.last_status_update)
             if wanted(msg):
                 return msg
             if msg.msg_id not in COMPLETIONS and msg.msg_id != MsgId.MOT_GET_DCSTATUSUPDATE:
                 self.ignored_messages += 1
+
+    def _status_report(self, status: pl.DcStatus) -> None:
+        """A status update as a position report: the controller sent it after the input was
+        last found empty (less the link's latency, ``StageConfig.link_latency_s``) and before
+        the read that brought it, narrowed by the stream's period (:attr:`update_times`).
+        None while homing (the counter's origin moves at its end)."""
+        if not self._status_updates:
+            return
+        if self.framing_errors != self._errors_seen:  # bytes lost: an update may be missing
+            self._errors_seen = self.framing_errors
+            self.update_times.restart()
+        lo, hi = self._arrival
+        if not hi > lo:
+            self.update_times.skip()  # counted: the next ones keep their place in the stream
+            return
+        lo, hi = self.update_times.add(lo - self.config.link_latency_s, hi)
+        if status.bits & pl.HOMING or not hi - lo <= UPDATE_WINDOW_MAX_S:
+            return  # homing moves the counter's origin; a wide window says little
+        self.path.reported(lo, hi, self.config.m_from_counts(status.position), source="update")
+        self.status_reports += 1
 
     def _keepalive(self) -> None:
         if not self._status_updates:
@@ -249,6 +355,7 @@ class KDC101:
         if now - self._last_update > 1.0:
             # The stream stopped (about 50 unacknowledged messages): ask for it again.
             self._send(command(MsgId.HW_START_UPDATEMSGS))
+            self.update_times.restart()
             self._last_update = self._last_ack = now
         elif now - self._last_ack >= KEEPALIVE_PERIOD_S:
             self._send(command(MsgId.MOT_ACK_DCSTATUSUPDATE))
@@ -262,8 +369,10 @@ class KDC101:
         never extends the deadline (ADR 0060). After a request went unanswered, the first
         query resynchronises within the same deadline (:meth:`_resync`).
         """
+        if self._segment is not None and not self._renewing:
+            self._renew_segment()
         timeout = self.config.reply_timeout_s if timeout is None else timeout
-        end = self.clock.now() + timeout
+        end = self.clock.now() + min(timeout, self._reply_cap)
         try:
             if self._unanswered:
                 self._resync(end, request.name)
@@ -365,6 +474,7 @@ class KDC101:
 
     def _discard_input(self) -> None:
         self._framer.clear()
+        self.update_times.restart()
         with suppress(InstrumentError, SerialException, OSError, ValueError):
             self._port.reset_input_buffer()
 
@@ -393,6 +503,7 @@ class KDC101:
 
     def disable(self) -> None:
         """De-energise the motor (stops any motion)."""
+        self.path.lost(self.clock.now())
         self._send(command(MsgId.MOD_SET_CHANENABLESTATE, CHANNEL, pl.CHAN_DISABLED))
 
     def velocity_params(self) -> pl.VelParams:
@@ -423,19 +534,22 @@ class KDC101:
     def home(self, wait: bool = True, timeout: float | None = None) -> None:
         with self._guard():
             self._maybe_moving = True
+            self.path.lost(self.clock.now())
             self._send(command(MsgId.MOT_MOVE_HOME, CHANNEL))
             self.status()  # surfaces an error reply to the command now
             if wait:
                 self.wait_until_stopped(timeout)
                 if not self.status().homed:
                     raise InstrumentError(f"KDC101 at {self.address}: homing did not complete")
+                self._position_counts()  # where the path starts again, in the homed frame
 
     def move_to(self, position_m: float, wait: bool = True, timeout: float | None = None) -> None:
         self.config.check_position(position_m)  # LimitError: nothing sent, nothing moved
         target = self.config.counts_from_m(position_m)
         with self._guard():
-            self._maybe_moving = True
-            self._send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(target)))
+            self._maybe_moving = True  # an error reply from here on may concern a move
+            start = self._position_counts()
+            self._start_move(start, target)
             self.status()
             if wait:
                 self.wait_until_stopped(timeout)
@@ -447,28 +561,130 @@ class KDC101:
             self.config.check_position(self.config.m_from_counts(start) + distance_m)
             steps = self.config.counts_from_m(distance_m)
             self._maybe_moving = True
-            self._send(data_message(MsgId.MOT_MOVE_RELATIVE, pl.pack_position(steps)))
+            if self._plan().fits(distance_m):  # ends within the bound: one command
+                self._segment = None
+                lo = self.clock.now()
+                self._send(data_message(MsgId.MOT_MOVE_RELATIVE, pl.pack_position(steps)))
+                self._commanded(lo, start + steps)
+            else:
+                self._start_move(start, start + steps)
             self.status()
             if wait:
                 self.wait_until_stopped(timeout)
                 self._check_arrival(start + steps)
 
     def move_velocity(self, direction: int) -> None:
-        """Run at the set velocity until ``stop`` (the controller's soft limits still hold)."""
+        """Run at the set velocity until ``stop``, at most to the software travel limit.
+
+        Sent as bounded segments towards that limit, never as MOT_MOVE_VELOCITY (ADR 0201):
+        the speed is the same while gelrig renews them, and the stage stops within
+        ``motion_bound_s`` when it does not.
+        """
         if direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {direction}")
-        param = pl.Directions.named(self.config.direction).code(direction)  # ADR 0100
+        c = self.config
+        end = c.counts_from_m(c.max_position_m if direction > 0 else c.min_position_m)
         with self._guard():
             self._maybe_moving = True
-            self._send(command(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param))
+            start = self._position_counts()
+            if (end - start) * direction <= 0:
+                return  # at the limit already: nothing to move
+            self._start_move(start, end)
             self.status()
 
-    def stop(self, immediate: bool = True) -> None:
-        mode = pl.STOP_IMMEDIATE if immediate else pl.STOP_PROFILED
+    def keep_alive(self) -> None:
+        """Renew the segmented move in progress if it is due (ADR 0201); else nothing."""
+        if self._segment is None:
+            return
         with self._guard():
+            self._renew_segment()
+
+    # ---- bounded segments (ADR 0201) --------------------------------------------------
+    def _plan(self) -> SegmentPlan:
+        return SegmentPlan.of(self.max_velocity_m_s, self.acceleration_m_s2,
+                              self.config.motion_bound_s)
+
+    def _start_move(self, start: int, final: int) -> None:
+        """Move from ``start`` to ``final`` (counts): one MOT_MOVE_ABSOLUTE if the move ends
+        within the bound, else its first segment."""
+        plan = self._plan()
+        cpm = self.config.counts_per_mm * 1e3
+        lo = self.clock.now()
+        if plan.fits((final - start) / cpm):
+            self._segment = None
+            self._send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(final)))
+        else:
+            move = BoundedMove(final, 1 if final > start else -1, plan.lookahead * cpm, plan,
+                               final, lo)
+            self._send_segment(move, move.next_target(start))
+        # renewed in time, the segments follow the profile of one move to ``final`` (ADR 0201)
+        self._commanded(lo, final)
+
+    def _commanded(self, lo: float, target_counts: int) -> None:
+        """Tell the path of a move to ``target_counts`` whose command went out from ``lo`` to
+        now, at the speed and acceleration the controller holds (its APT units)."""
+        c = self.config
+        speed = c.velocity_from_apt(c.apt_velocity(self.max_velocity_m_s))
+        accel = c.accel_from_apt(c.apt_acceleration(self.acceleration_m_s2))
+        self.path.commanded(lo, self.clock.now(), c.m_from_counts(target_counts), speed, accel)
+
+    def _send_segment(self, move: BoundedMove, target: float) -> None:
+        counts = int(target) if target == move.final else round(target)
+        self._send(data_message(MsgId.MOT_MOVE_ABSOLUTE, pl.pack_position(counts)))
+        if counts == move.final:
+            self._segment = None  # the last segment: the move now ends by itself
+        else:
+            move.target, move.renewed_at = counts, self.clock.now()
+            self._segment = move
+
+    def _renew_segment(self) -> None:
+        """Send the next segment if it is due: a target ``lookahead`` ahead of the stage.
+
+        A renewal later than the plan's ``late_after`` raises InstrumentError (the guard then
+        stops the stage): the stage may already have slowed down or stopped short, so the
+        move is no longer the one commanded.
+        """
+        move = self._segment
+        now = self.clock.now()
+        if move is None or not move.due(now):
+            return
+        if move.late(now):
+            self._segment = None
+            cpm = self.config.counts_per_mm * 1e3
+            raise InstrumentError(
+                f"KDC101 at {self.address}: a move segment was renewed "
+                f"{now - move.renewed_at:.2f} s after the last (at most "
+                f"{move.plan.late_after:.2f} s keeps the speed profile): gelrig stalled, so "
+                f"the stage may have stopped short of {move.final / cpm * 1e3:.4f} mm; the "
+                "move is abandoned (ADR 0201)")
+        self._renewing = True
+        try:
+            position = self._position_counts()
+        finally:
+            self._renewing = False
+        if self._segment is not move:
+            return  # a stop (or another move) came in the meantime: nothing to renew
+        self.renewals += 1
+        self._send_segment(move, move.next_target(position))
+
+    def stop(self, immediate: bool = True) -> None:
+        """Send MOT_MOVE_STOP; an immediate stop waits until the stage reads back stopped
+        (at most ``reply_timeout``, or :data:`SILENT_STOP_WAIT_S` per reply while a request
+        is unanswered: a silent controller is not waited for twice)."""
+        mode = pl.STOP_IMMEDIATE if immediate else pl.STOP_PROFILED
+        silent = bool(self._unanswered)
+        with self._guard():
+            lo = self.clock.now()
             self._send(command(MsgId.MOT_MOVE_STOP, CHANNEL, mode))
+            c = self.config
+            self.path.stopped(lo, self.clock.now(), immediate,
+                              c.accel_from_apt(c.apt_acceleration(self.acceleration_m_s2)))
             if immediate:
-                self.wait_until_stopped(self.config.reply_timeout_s)
+                self._reply_cap = SILENT_STOP_WAIT_S if silent else float("inf")
+                try:
+                    self.wait_until_stopped(self.config.reply_timeout_s)
+                finally:
+                    self._reply_cap = float("inf")
 
     def _check_arrival(self, target: int) -> None:
         counts = self._position_counts()
@@ -495,8 +711,10 @@ class KDC101:
 
     # ---- Stage: readings --------------------------------------------------------------
     def _position_counts(self) -> int:
+        lo = self.clock.now()
         _, counts = pl.unpack_position(self._data(self._req(MsgId.MOT_REQ_POSCOUNTER,
                                                             MsgId.MOT_GET_POSCOUNTER)))
+        self.path.reported(lo, self.clock.now(), self.config.m_from_counts(counts))
         return counts
 
     def position_counts(self) -> int:

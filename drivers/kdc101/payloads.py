@@ -12,8 +12,8 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.kdc101.apt import CHANNEL, AptFramingError
-from instrument.stage import FORWARD_IS_NEGATIVE, FORWARD_IS_POSITIVE, StageStatus
+from gelrig.drivers.kdc101.apt import CHANNEL, AptFramingError
+from gelrig.instrument.contracts.stage import FORWARD_IS_NEGATIVE, FORWARD_IS_POSITIVE, StageStatus
 
 # Status bits (MOT_GET_STATUSBITS / DC status update), named as in the protocol document.
 # Which end each direction pair refers to is decided by ``Directions``, nowhere else.

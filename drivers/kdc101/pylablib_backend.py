@@ -4,8 +4,9 @@ Optional: needs the ``pylablib`` extra (pylablib-lightweight, plus numba, which 
 Thorlabs package imports). pylablib does the APT talking; this adapter converts units, checks
 software limits before anything is sent, waits on the injected clock, maps pylablib's errors to
 ours, and sends a stop on any fault while moving (Ctrl-C included). Like ``KDC101``, the
-constructor does no I/O and ``open()`` connects (ADR 0050). Velocity moves use the direction
-convention of ``payloads.Directions`` (the rig's ``direction``, ADR 0100).
+constructor does no I/O and ``open()`` connects (ADR 0050). Moves longer than
+``StageConfig.motion_bound_s`` and velocity moves go out as bounded segments (absolute
+targets) renewed by every later call, as in ``KDC101`` (ADR 0201).
 """
 
 from __future__ import annotations
@@ -15,19 +16,20 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from typing import Any
 
-from drivers.kdc101 import payloads as pl
-from drivers.kdc101.apt import CHANNEL, MsgId
-from drivers.kdc101.driver import stage_identity
-from instrument.clock import Clock, RealClock
-from instrument.errors import (
+from gelrig.drivers.kdc101 import payloads as pl
+from gelrig.drivers.kdc101.apt import CHANNEL, MsgId
+from gelrig.drivers.kdc101.driver import stage_identity
+from gelrig.drivers.kdc101.segments import BoundedMove, SegmentPlan
+from gelrig.instrument.contracts.stage import StageConfig, StageStatus
+from gelrig.instrument.contracts.stop_first import stop_on_fault
+from gelrig.instrument.core.clock import Clock, RealClock
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     InstrumentError,
     InstrumentTimeout,
 )
-from instrument.identity import Identity
-from instrument.safety import stop_on_fault
-from instrument.stage import StageConfig, StageStatus
+from gelrig.instrument.core.identity import Identity
 
 
 def load_kinesis() -> Any:
@@ -55,6 +57,9 @@ class PylablibKDC101:
         self.address = port
         self._timeout_s = timeout_s
         self._maybe_moving = False
+        self._segment: BoundedMove | None = None  # the segmented move in progress (ADR 0201)
+        self._renewing = False
+        self.renewals = 0
         self._motor: Any = None
         self._errors: tuple[type[Exception], ...] = ()  # pylablib's, known once loaded
         self.identity: Identity | None = None
@@ -107,6 +112,8 @@ class PylablibKDC101:
         with stop_on_fault(self._emergency_stop, needed=lambda: self._maybe_moving,
                            what=f"KDC101 (pylablib) at {self.address}"):
             try:
+                if self._segment is not None and not self._renewing:
+                    self._renew_segment()
                 yield
             except self._errors as exc:
                 raise self._translate(exc) from exc
@@ -122,6 +129,7 @@ class PylablibKDC101:
         return InstrumentError(text)
 
     def _emergency_stop(self) -> None:
+        self._segment = None
         self.motor.send_comm(MsgId.MOT_MOVE_STOP, CHANNEL, pl.STOP_IMMEDIATE)
 
     # ---- Stage ------------------------------------------------------------------------
@@ -144,8 +152,10 @@ class PylablibKDC101:
         self.config.check_velocity(max_m_s, accel_m_s2)
         with self._mapped():
             self.motor.setup_velocity(acceleration=accel_m_s2, max_velocity=max_m_s)
+        self.max_velocity_m_s, self.acceleration_m_s2 = max_m_s, accel_m_s2
 
     def home(self, wait: bool = True, timeout: float | None = None) -> None:
+        self._segment = None
         with self._mapped():
             self._maybe_moving = True
             self.motor.home(sync=False, force=True)
@@ -158,27 +168,91 @@ class PylablibKDC101:
         self.config.check_position(position_m)
         with self._mapped():
             self._maybe_moving = True
-            self.motor.move_to(position_m)
+            self._start_move(float(self.motor.get_position()), position_m)
         if wait:
             self.wait_until_stopped(timeout)
 
     def move_by(self, distance_m: float, wait: bool = True, timeout: float | None = None) -> None:
-        self.config.check_position(self.position() + distance_m)
+        start = self.position()
+        self.config.check_position(start + distance_m)
         with self._mapped():
             self._maybe_moving = True
-            self.motor.move_by(distance_m)
+            if self._plan().fits(distance_m):
+                self._segment = None
+                self.motor.move_by(distance_m)
+            else:
+                self._start_move(start, start + distance_m)
         if wait:
             self.wait_until_stopped(timeout)
 
     def move_velocity(self, direction: int) -> None:
+        """Run at the set velocity until ``stop``, at most to the software travel limit, as
+        bounded segments (ADR 0201)."""
         if direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {direction}")
-        param = pl.Directions.named(self.config.direction).code(direction)  # ADR 0100
+        c = self.config
+        end = c.max_position_m if direction > 0 else c.min_position_m
         with self._mapped():
             self._maybe_moving = True
-            self.motor.send_comm(MsgId.MOT_MOVE_VELOCITY, CHANNEL, param)
+            start = float(self.motor.get_position())
+            if (end - start) * direction > 0:
+                self._start_move(start, end)
+
+    def keep_alive(self) -> None:
+        """Renew the segmented move in progress if it is due (ADR 0201); else nothing."""
+        if self._segment is not None:
+            with self._mapped():
+                pass  # entering renews a due segment
+
+    # ---- bounded segments (ADR 0201) --------------------------------------------------
+    def _plan(self) -> SegmentPlan:
+        return SegmentPlan.of(self.max_velocity_m_s, self.acceleration_m_s2,
+                              self.config.motion_bound_s)
+
+    def _start_move(self, start: float, final: float) -> None:
+        plan = self._plan()
+        if plan.fits(final - start):
+            self._segment = None
+            self.motor.move_to(final)
+            return
+        move = BoundedMove(final, 1 if final > start else -1, plan.lookahead, plan, final,
+                           self.clock.now())
+        self._send_segment(move, move.next_target(start))
+
+    def _send_segment(self, move: BoundedMove, target: float) -> None:
+        self.motor.move_to(target)
+        if target == move.final:
+            self._segment = None
+        else:
+            move.target, move.renewed_at = target, self.clock.now()
+            self._segment = move
+
+    def _renew_segment(self) -> None:
+        """The next segment if due; InstrumentError if so late that the stage may have
+        slowed down (the move is abandoned, and the caller's guard stops the stage)."""
+        move = self._segment
+        now = self.clock.now()
+        if move is None or not move.due(now):
+            return
+        if move.late(now):
+            self._segment = None
+            raise InstrumentError(
+                f"KDC101 (pylablib) at {self.address}: a move segment was renewed "
+                f"{now - move.renewed_at:.2f} s after the last (at most "
+                f"{move.plan.late_after:.2f} s keeps the speed profile); the move is "
+                "abandoned (ADR 0201)")
+        self._renewing = True
+        try:
+            position = float(self.motor.get_position())
+        finally:
+            self._renewing = False
+        if self._segment is not move:
+            return  # a stop came in the meantime
+        self.renewals += 1
+        self._send_segment(move, move.next_target(position))
 
     def stop(self, immediate: bool = True) -> None:
+        self._segment = None  # before anything: a stop never renews a segment
         with self._mapped():
             self.motor.stop(immediate=immediate, sync=False)
         if immediate:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-from drivers.mcr501.commands import (
+from gelrig.drivers.mcr501.commands import (
     BUSY,
     COMMANDS,
     ERROR,
@@ -20,7 +20,7 @@ from drivers.mcr501.commands import (
     Command,
     split_key,
 )
-from instrument.errors import DeviceErrorReply, FramingError
+from gelrig.instrument.core.errors import DeviceErrorReply, FramingError
 
 Values = dict[str, float | int | str]
 

@@ -6,7 +6,9 @@ vendor software and an MCR 501 (firmware 03.40: ``#VERS[?]``, ``#DATA[?]``, ``:S
 ``:RUN[]``, records ``:MEAS[...]``), but the keywords, argument formats, units and replies
 below are the project's reconstruction. Every entry must be confirmed on the instrument
 before the rig runs on hardware (docs/decisions/0020). The simulator serves exactly this
-table, so changing an entry here changes both sides at once.
+table, so changing an entry here changes both sides at once. gelrig turns the arm only with
+the time-limited ``:ROT[dir;rpm;duration]`` (docs/decisions/0201, UNVERIFIED like the rest);
+the unbounded ``:ROT[dir;rpm]`` stays in the table for other clients of the simulator.
 
 Framing: one line per message, ``KEY[field;field;...]`` terminated by CR LF. A query has the
 single argument ``?``; an action without arguments has empty brackets. Actions answer
@@ -254,6 +256,15 @@ _TABLE: tuple[Command, ...] = (
         ":ROT",
         (word("direction", "CW", "CCW"), number("rpm", ".6e")),
         "turn at a constant speed (rpm >= 0) clockwise or counter-clockwise",
+    ),
+    _action(
+        "rotate_for",
+        ":ROT",
+        (word("direction", "CW", "CCW"), number("rpm", ".6e"), number("duration_s", ".6g")),
+        "turn at a constant speed for at most duration_s (0 < d <= 3600) from now, then ramp "
+        "the speed to zero as :STOP does; the same direction and speed again before then "
+        "renews the duration without touching the motion (the only rotation gelrig sends: "
+        "docs/decisions/0201)",
     ),
     _action("stop", ":STOP", "", "ramp the speed to zero"),
     _action("hold", ":HOLD", "", "ramp to rest and hold the position"),

@@ -1,11 +1,15 @@
-"""The MCR 501 driver: the :class:`instrument.rheometer.Rheometer` contract over pyvisa.
+"""The MCR 501 driver: the :class:`gelrig.instrument.contracts.rheometer.Rheometer` contract over
+pyvisa.
 
 Every request goes through the command table (drivers/mcr501/commands.py, UNCONFIRMED on
 hardware). SI units at the interface; wire units (mm, deg, rpm, mN m) inside. Waits run on the
 injected clock, so in virtual time a gap move or a pass costs no wall time. The constructor
 does no I/O; ``open()`` (or ``with``) connects and identifies (ADR 0050). Safe by default: any
 failure of a method while the arm may be turning, Ctrl-C included, sends stop before the error
-propagates (instrument.safety).
+propagates (gelrig.instrument.contracts.stop_first). The arm turns only in time-limited
+segments (``:ROT[dir;rpm;duration]``) that every later request renews while gelrig runs, so the
+instrument ends a rotation by itself within ``RheometerConfig.motion_bound`` if gelrig dies
+(docs/decisions/0201).
 """
 
 from __future__ import annotations
@@ -18,17 +22,19 @@ from typing import Any
 
 import numpy as np
 
-from drivers.mcr501.codec import (
+from gelrig.drivers.mcr501.codec import (
     RECORD_FIELDS,
     Values,
     decode_record_rows,
     decode_reply,
     decode_stream_header,
 )
-from drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
-from drivers.mcr501.transport import LineTransport, VisaTransport
-from instrument.clock import Clock
-from instrument.errors import (
+from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
+from gelrig.drivers.mcr501.transport import LineTransport, VisaTransport
+from gelrig.instrument.contracts.rheometer import RheometerConfig, RheometerStatus, StreamBlock
+from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import (
     Disconnected,
     FramingError,
     GelrigError,
@@ -36,10 +42,8 @@ from instrument.errors import (
     InstrumentTimeout,
     LimitError,
 )
-from instrument.identity import Identity
-from instrument.rheometer import RheometerConfig, RheometerStatus, StreamBlock
-from instrument.safety import guarded, stop_on_fault
-from instrument.sliding import rpm_from_speed
+from gelrig.instrument.core.identity import Identity
+from gelrig.instrument.physics.sliding import rpm_from_speed
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +57,16 @@ _STREAM_REQUEST = COMMANDS["read_stream"].request.encode()
 _MILLI = np.array(1e-3)
 #: A record later than this many intervals after the one before it means points were lost.
 GAP_TOLERANCE = 1.5
+#: A rotation segment lasts this fraction of ``motion_bound`` on the instrument (the rest of
+#: the bound is for its ramp to rest), and is renewed after ``RENEW_FRACTION`` of it
+#: (docs/decisions/0201).
+SEGMENT_FRACTION = 0.75
+RENEW_FRACTION = 0.25
+_RENEW_TOLERANCE_S = 1e-9
+
+
+#: Commands after which no rotation is renewed (a time-limited one renews itself).
+_ENDS_ROTATION = frozenset({"stop", "hold", "rotate"})
 
 
 class StreamOverflow(InstrumentError):
@@ -85,8 +99,15 @@ class MCR501:
         self._backend, self._resource_manager, self._baud_rate = (
             backend, resource_manager, baud_rate)
         self._maybe_rotating = False
+        #: The rotation being renewed, (direction, rpm), and when it was last sent (ADR 0201).
+        self._rotation: tuple[str, float] | None = None
+        self._rotation_sent = 0.0
+        self._renewing = False
+        self.renewals = 0
         self._resync = False  # a reply may still be on its way after a fault: drain first
         self._stream_t0: float | None = None
+        #: half the window (s) in which the stream started: its times' uncertainty on the clock
+        self.stream_start_uncertainty = math.nan
         self._stream_interval = 0.0
         self._stream_last = 0.0  # instrument time (s since :RUN) of the last record read
         self._loss_reported = False  # StreamOverflow raised for this stream already
@@ -124,6 +145,31 @@ class MCR501:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def reopen(self) -> MCR501:
+        """Release the link (lost or not) and open a new one to the same VISA resource, then
+        identify; for the safe stop after a lost link. Disconnected for a link given ready
+        made (nothing to open again); InstrumentError if another instrument answers."""
+        given = self._given
+        if not isinstance(given, str):
+            raise Disconnected("MCR 501: the link was given ready made; it cannot be reopened")
+        before = self.identity
+        self._release()
+        self._resync = False
+        self._link = VisaTransport(given, timeout=self._config.timeout, backend=self._backend,
+                                   resource_manager=self._resource_manager,
+                                   baud_rate=self._baud_rate)
+        try:
+            identity = self.identify()
+        except BaseException:
+            self._release()
+            raise
+        if before is not None and identity.serial != before.serial:
+            self._release()
+            raise InstrumentError(f"MCR 501 on {given}: a new link reached serial "
+                                  f"{identity.serial}, not {before.serial}")
+        self.identity = identity
+        return self
+
     @property
     def _transport(self) -> LineTransport:
         """The open transport; Disconnected before ``open()`` or after ``close()``."""
@@ -143,6 +189,10 @@ class MCR501:
     # -- wire ------------------------------------------------------------------------------
 
     def _transact(self, name: str, **values: object) -> Values:
+        if name in _ENDS_ROTATION:
+            self._rotation = None  # a stop or a new speed: nothing to renew any more
+        elif self._rotation is not None and not self._renewing:
+            self._renew_rotation()
         command = COMMANDS[name]
         self._send(command.request.encode(**values))
         return decode_reply(command, self._transport.read_line())
@@ -156,7 +206,7 @@ class MCR501:
 
     @contextlib.contextmanager
     def _guard(self) -> Iterator[None]:
-        """Any failure while the arm may turn sends stop first (instrument.safety).
+        """Any failure while the arm may turn sends stop first (contracts.stop_first).
 
         A timeout, a framing error or an interrupted exchange (Ctrl-C) may leave a reply
         unread: the input is drained so that the next reply lines up with its request.
@@ -190,6 +240,7 @@ class MCR501:
                     self._transact("stop")
             except InstrumentError as exc:
                 self._drain()
+                self._resync = True  # its answer may still come, late
                 if attempt == 2 or isinstance(exc, InstrumentTimeout | Disconnected):
                     raise
                 continue
@@ -285,11 +336,55 @@ class MCR501:
             return
         rpm = rpm_from_speed(abs(speed), self._config.arm)
         self._maybe_rotating = True
-        self._transact("rotate", direction="CW" if speed > 0 else "CCW", rpm=rpm)
+        self._send_rotation(("CW" if speed > 0 else "CCW", rpm))
 
     @guarded
+    def keep_alive(self) -> None:
+        """Renew the rotation in progress if it is due (ADR 0201); else nothing."""
+        if self._rotation is not None:
+            self._renew_rotation()
+
+    @property
+    def segment_s(self) -> float:
+        """How long one rotation segment lasts on the instrument (s)."""
+        return SEGMENT_FRACTION * self._config.motion_bound
+
+    def _send_rotation(self, rotation: tuple[str, float]) -> None:
+        """A time-limited rotation: ``segment_s`` on the instrument, renewed by later calls."""
+        sent = self._clock.now()
+        self._renewing = True
+        try:
+            self._transact("rotate_for", direction=rotation[0], rpm=rotation[1],
+                           duration_s=self.segment_s)
+        finally:
+            self._renewing = False
+        self._rotation, self._rotation_sent = rotation, sent
+
+    def _renew_rotation(self) -> None:
+        """Send the rotation again if due. Later than its segment lasts, the instrument has
+        begun to ramp to rest: InstrumentError (stop first), the rotation is abandoned."""
+        rotation, now = self._rotation, self._clock.now()
+        elapsed = now - self._rotation_sent
+        if rotation is None or elapsed < RENEW_FRACTION * self._config.motion_bound \
+                - _RENEW_TOLERANCE_S:
+            return
+        if elapsed > self.segment_s:
+            self._rotation = None
+            raise InstrumentError(
+                f"MCR 501: the rotation was renewed {elapsed:.2f} s after it was last sent, "
+                f"later than its {self.segment_s:g} s segment: gelrig stalled and the arm has "
+                "begun to stop by itself; the rotation is abandoned (docs/decisions/0201)")
+        self.renewals += 1
+        self._send_rotation(rotation)
+
     def stop(self) -> None:
-        self._stop()
+        """Stop the arm. After a reply went missing (a silent instrument) the stop's
+        acknowledgement is awaited at most STOP_ACK_TIMEOUT_S, as after a fault."""
+        if not self._resync:
+            with self._guard():
+                self._stop()
+            return
+        self._emergency_stop()
 
     def _stop(self) -> None:
         self._transact("stop")
@@ -325,9 +420,12 @@ class MCR501:
             raise LimitError(
                 f"MCR 501: stream interval {interval!r} s; allowed >= {MIN_STREAM_INTERVAL:g} s"
             )
-        t0 = self._clock.now()
+        lo = self._clock.now()
         self._transact("start_stream", interval_s=interval)
-        self._stream_t0 = t0
+        hi = self._clock.now()
+        # the stream's time 0 is when the instrument took the command: within [lo, hi]
+        self._stream_t0 = 0.5 * (lo + hi)
+        self.stream_start_uncertainty = 0.5 * (hi - lo)
         self._stream_interval, self._stream_last = interval, 0.0
         self._loss_reported = False
 
@@ -339,6 +437,8 @@ class MCR501:
         after the previous one means the instrument dropped points (its buffer overflowed):
         StreamOverflow, naming how many and when, instead of a silent hole in the data.
         """
+        if self._rotation is not None:
+            self._renew_rotation()
         t0 = 0.0 if self._stream_t0 is None else self._stream_t0
         values: list[float] = []
         transport = self._transport

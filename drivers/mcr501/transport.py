@@ -13,8 +13,13 @@ from collections.abc import Iterator
 from contextlib import AbstractContextManager
 from typing import Any, Protocol
 
-from drivers.mcr501.commands import BAUD_RATE, DATA_BITS, TERMINATION
-from instrument.errors import Disconnected, FramingError, InstrumentTimeout
+from gelrig.drivers.mcr501.commands import BAUD_RATE, DATA_BITS, TERMINATION
+from gelrig.instrument.core.errors import (
+    Disconnected,
+    FramingError,
+    InstrumentTimeout,
+    NotSent,
+)
 
 
 class LineTransport(Protocol):
@@ -135,11 +140,14 @@ class VisaTransport:
 
     def write_line(self, line: str) -> None:
         if self._closed:
-            raise Disconnected(f"MCR 501 on {self.resource_name}: transport closed")
+            raise NotSent(f"MCR 501 on {self.resource_name}: transport closed")
         try:
             self._res.write(line)
         except Exception as exc:
-            raise self._map(exc, f"sending {line!r}") from exc
+            mapped = self._map(exc, f"sending {line!r}")
+            if isinstance(mapped, Disconnected):  # the write failed: nothing left
+                raise NotSent(str(mapped)) from exc
+            raise mapped from exc
 
     def read_line(self) -> str:
         if self._closed:

@@ -1,8 +1,8 @@
 """NI USB-6001 load-cell input through the official nidaqmx API (local or gRPC)."""
 
-from drivers.usb6001.config import Usb6001Config
-from drivers.usb6001.errors import DaqDeviceNotFoundError, DaqDriverNotFoundError
-from drivers.usb6001.sensor import Usb6001ForceSensor, grpc_options_for
+from gelrig.drivers.usb6001.config import Usb6001Config
+from gelrig.drivers.usb6001.errors import DaqDeviceNotFoundError, DaqDriverNotFoundError
+from gelrig.drivers.usb6001.sensor import Usb6001ForceSensor, grpc_options_for
 
 __all__ = [
     "DaqDeviceNotFoundError",

@@ -5,7 +5,8 @@ from __future__ import annotations
 import grpc
 import nidaqmx.errors as daq_errors
 
-from instrument.errors import (
+from gelrig.instrument.contracts.loadcell import AcquisitionOverflowError
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
@@ -13,7 +14,6 @@ from instrument.errors import (
     InstrumentError,
     InstrumentTimeout,
 )
-from instrument.loadcell import AcquisitionOverflowError
 
 #: DAQmx codes that mean acquired samples were lost (buffer or FIFO overflow).
 OVERFLOW_CODES = frozenset({-200279, -200010, -200361, -209829})

@@ -28,11 +28,18 @@ from nidaqmx.constants import AcquisitionType, TerminalConfiguration
 from nidaqmx.stream_readers import AnalogSingleChannelReader
 from numpy.typing import ArrayLike
 
-from drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
-from drivers.usb6001.deadline import DeadlineInterceptor, with_deadlines
-from drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
-from instrument.clock import Clock
-from instrument.errors import (
+from gelrig.drivers.usb6001.config import MIN_RATE, RANGE_VOLTS, Usb6001Config
+from gelrig.drivers.usb6001.deadline import DeadlineInterceptor, with_deadlines
+from gelrig.drivers.usb6001.errors import NIDAQMX_ERRORS, SAMPLES_NOT_YET_AVAILABLE, translate
+from gelrig.instrument.contracts.loadcell import (
+    AcquisitionTimeoutError,
+    ForceBlock,
+    ForceOverRangeError,
+    LoadCellChain,
+)
+from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.errors import (
     ConfigError,
     Disconnected,
     FramingError,
@@ -40,17 +47,14 @@ from instrument.errors import (
     InstrumentError,
     InstrumentTimeout,
 )
-from instrument.identity import Identity
-from instrument.loadcell import (
-    AcquisitionTimeoutError,
-    ForceBlock,
-    ForceOverRangeError,
-    LoadCellChain,
-)
-from instrument.safety import guarded, stop_on_fault
+from gelrig.instrument.core.identity import Identity
+from gelrig.instrument.core.timebase import SampleClock
 
 log = logging.getLogger(__name__)
 
+#: Least run-clock time (s) between two queries of the samples waiting after a read (each is
+#: a call to the device; a few per 5 s bin of the drift's envelope are enough).
+ARRIVAL_QUERY_S = 0.5
 #: Fallback device limit (S/s aggregate) if the device does not report its maximum rate.
 DEFAULT_MAX_RATE = 20_000.0
 _TERMINALS = {"RSE": TerminalConfiguration.RSE, "DIFF": TerminalConfiguration.DIFF}
@@ -94,7 +98,7 @@ CHANNEL_OPTIONS = (("grpc.use_local_subchannel_pool", 1),)
 
 
 class Usb6001ForceSensor:
-    """A :class:`~instrument.loadcell.ForceSensor` on one USB-6001 analog input.
+    """A :class:`~gelrig.instrument.contracts.loadcell.ForceSensor` on one USB-6001 analog input.
 
     ``address`` is "local" (NI-DAQmx on this computer), "grpc://host:port" (an NI gRPC Device
     Server, real or simulated; the channel is made by ``open()`` and closed by ``close()``),
@@ -127,7 +131,9 @@ class Usb6001ForceSensor:
         self._zero = chain.offset
         self._rate = 0.0
         self._running = False
-        self._t_start = 0.0
+        #: how sample indices map onto the run's clock (a new one per start)
+        self.sample_clock = SampleClock(1.0, 0.0, 0.0)
+        self._last_arrival_query = -math.inf
         self._index = 0
         self._task: nidaqmx.Task | None = None
         self._product = ""
@@ -306,8 +312,9 @@ class Usb6001ForceSensor:
             self.task.timing.cfg_samp_clk_timing(
                 rate_hz, sample_mode=AcquisitionType.CONTINUOUS, samps_per_chan=buffer
             )
-            self._t_start = self.clock.now()
+            lo = self.clock.now()
             self.task.start()
+            self.sample_clock = SampleClock(rate_hz, lo, self.clock.now())
         self._rate = float(rate_hz)
         self._index = 0
         self._running = True
@@ -345,6 +352,8 @@ class Usb6001ForceSensor:
         except NIDAQMX_ERRORS as exc:
             raise self._translate(exc) from exc
         block = self._block(data)
+        if n and self.clock.now() - self._last_arrival_query >= ARRIVAL_QUERY_S:
+            self._note_arrival()
         if block.any_over_range and self.config.on_over_range == "raise":
             bad = np.flatnonzero(block.over_range)
             raise ForceOverRangeError(
@@ -354,15 +363,27 @@ class Usb6001ForceSensor:
         return block
 
     def _block(self, volts: np.ndarray) -> ForceBlock:
-        """Timestamp and convert samples that were just read; advance the sample index."""
+        """Timestamp and convert samples that were just read; advance the sample index.
+
+        Sample k is at ``t0 + k / rate`` on the sample clock, mapped onto the run's clock
+        (:class:`SampleClock`: the start's window, the drift from the blocks' arrivals)."""
         k = self._index + np.arange(volts.size, dtype=float)
         self._index += volts.size
         return ForceBlock(
-            t=self._t_start + k / self._rate,
+            t=self.sample_clock.times(k),
             force=self.chain.newtons(volts, self._zero),
             volts=volts,
             over_range=np.abs(volts) > self.config.over_range_volts,
         )
+
+    def _note_arrival(self) -> None:
+        """Tell the sample clock how far the samples had arrived just now: the last sample
+        read plus those already waiting (the rest of its USB transfer), by the time the
+        count came back; the earliest such arrivals give the sample clock's drift."""
+        with self._errors():
+            waiting = int(self.task.in_stream.avail_samp_per_chan)
+        now = self._last_arrival_query = self.clock.now()
+        self.sample_clock.arrived(self._index - 1 + waiting, now)
 
     def tare(self, duration: float = 1.0) -> float:
         """Zero on the mean input over ``duration`` (s) of samples; return the removed force (N).

@@ -20,7 +20,7 @@ from typing import Any
 from gelrig.campaign.member import run_member
 from gelrig.campaign.spec import MemberSpec
 from gelrig.campaign.store import ResultStore
-from instrument.errors import ConfigError
+from gelrig.instrument.core.errors import ConfigError
 
 #: A member is mostly Python on a few threads: every wake-up of a worker's housekeeping takes
 #: the GIL from it. The statistical profiler (every 10 ms), the event-loop health tick (20 ms)
@@ -88,7 +88,8 @@ def dask_client(scheduler: str | None, workers: int, processes: bool = True
 
 #: What a member imports: loaded on every worker before the members start.
 MEMBER_MODULES = ("matplotlib.pyplot", "scipy.optimize", "nidaqmx", "h5py", "gelrig.factory",
-                  "gelrig.analyze_run", "instrument.model_fit", "protocols.session")
+                  "gelrig.analyze_run", "gelrig.instrument.analysis.model_fit",
+                  "gelrig.protocols.host")
 
 
 def _load_member_code() -> None:

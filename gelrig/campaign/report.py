@@ -4,7 +4,7 @@ From the results table (one row per member): the bias and spread of each fitted 
 against the truth, the coverage of the reported 95 % intervals, the error of tau against the
 hold length and of G_1 against the speeds used, l_c/l_g against speed per truth variant, and a
 table comparing the variants. Written with the project's report layer
-(:func:`instrument.report.write_report`); figures with matplotlib (Agg).
+(:func:`gelrig.instrument.reports.document.write_report`); figures with matplotlib (Agg).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from gelrig.campaign.member import FITTED
-from instrument.report import Column, Section, Table, write_report
+from gelrig.instrument.reports.document import Column, Section, Table, write_report
 
 Row = Mapping[str, Any]
 #: Two-sided 95 % normal quantile, for the binomial band of a coverage.
@@ -28,10 +28,12 @@ Z95 = 1.959963984540054
 
 @dataclass(frozen=True)
 class Coverage:
-    """How often the reported 95 % interval held the truth: ``hits`` of ``n``."""
+    """How often the reported 95 % interval held the truth: ``hits`` of ``n`` resolved
+    members; ``unresolved`` more had a truth but no resolved estimate (left out)."""
 
     hits: int
     n: int
+    unresolved: int = 0
 
     @property
     def fraction(self) -> float:
@@ -59,10 +61,22 @@ def fitted_names(rows: Sequence[Row]) -> list[str]:
                    for r in rows)]
 
 
+def is_resolved(row: Row, name: str) -> bool:
+    """Whether ``row`` has a resolved estimate of ``name`` (a member whose fit the data do not
+    resolve, ``resolved`` false, has none; rows from before the column count as resolved)."""
+    return row.get("resolved") is not False and math.isfinite(_num(row, f"fit.{name}"))
+
+
+def unresolved(rows: Sequence[Row], name: str) -> int:
+    """Finished rows with a truth of ``name`` but no resolved estimate of it."""
+    return sum(r.get("status") == "ok" and math.isfinite(_num(r, f"truth.{name}"))
+               and not is_resolved(r, name) for r in rows)
+
+
 def relative_errors(rows: Sequence[Row], name: str) -> np.ndarray:
-    """(fit - truth) / truth of ``name`` over the rows that have both."""
+    """(fit - truth) / truth of ``name`` over the rows that have both, resolved only."""
     out = [(_num(r, f"fit.{name}") - _num(r, f"truth.{name}")) / _num(r, f"truth.{name}")
-           for r in rows]
+           for r in rows if is_resolved(r, name)]
     arr = np.asarray(out, dtype=float)
     return arr[np.isfinite(arr)]
 
@@ -70,20 +84,20 @@ def relative_errors(rows: Sequence[Row], name: str) -> np.ndarray:
 def z_scores(rows: Sequence[Row], name: str) -> np.ndarray:
     """(fit - truth) / reported s.e. of ``name``: spread 1 when the s.e. is honest."""
     out = [(_num(r, f"fit.{name}") - _num(r, f"truth.{name}")) / _num(r, f"se.{name}")
-           for r in rows]
+           for r in rows if is_resolved(r, name)]
     arr = np.asarray(out, dtype=float)
     return arr[np.isfinite(arr)]
 
 
 def coverage(rows: Sequence[Row], name: str) -> Coverage:
-    """How many finished rows' [lo, hi] of ``name`` hold its truth."""
+    """How many finished, resolved rows' [lo, hi] of ``name`` hold its truth."""
     hits = n = 0
     for r in rows:
         lo, hi, truth = _num(r, f"lo.{name}"), _num(r, f"hi.{name}"), _num(r, f"truth.{name}")
-        if r.get("status") == "ok" and math.isfinite(truth):
+        if r.get("status") == "ok" and math.isfinite(truth) and is_resolved(r, name):
             n += 1
             hits += bool(math.isfinite(lo) and math.isfinite(hi) and lo <= truth <= hi)
-    return Coverage(hits, n)
+    return Coverage(hits, n, unresolved(rows, name))
 
 
 def variants(rows: Sequence[Row]) -> dict[str, list[Row]]:
@@ -122,6 +136,7 @@ def variant_rows(rows: Sequence[Row]) -> tuple[list[dict[str, object]], list[str
         row: dict[str, object] = {
             "variant": f"V{i}", "what": label, "members": len(group), "ok": len(ok),
             "failed": sum(r.get("status") == "failed" for r in group),
+            "not_resolved": sum(r.get("resolved") is False for r in ok),
             "wall_median_s": float(np.median(walls)) if walls else math.nan}
         for name in names:
             err = relative_errors(ok, name)
@@ -136,11 +151,17 @@ def summary_lines(rows: Sequence[Row]) -> list[str]:
     """Per fitted parameter over all finished members: bias, sd and the 95 % coverage."""
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = [r for r in rows if r.get("status") == "failed"]
+    left_out = sum(r.get("resolved") is False for r in ok)
     lines = [f"{len(rows)} member(s): {len(ok)} ok, "
              f"{sum(r.get('status') == 'incomplete' for r in rows)} incomplete, "
-             f"{len(failed)} failed"]
+             f"{len(failed)} failed"
+             + (f", {left_out} ok but not resolved (left out of bias and coverage)"
+                if left_out else "")]
     for name in fitted_names(ok):
         err, cov = relative_errors(ok, name), coverage(ok, name)
+        if not err.size:
+            lines.append(f"  {name:12s} no resolved member ({cov.unresolved} not resolved)")
+            continue
         lo, hi = cov.band()
         sd = float(np.std(err, ddof=1)) if err.size > 1 else math.nan
         z = z_scores(ok, name)
@@ -148,9 +169,17 @@ def summary_lines(rows: Sequence[Row]) -> list[str]:
         lines.append(f"  {name:12s} bias {np.mean(err) * 100:+.3f} %, sd {sd * 100:.3f} %, "
                      f"95 % interval holds the truth in {cov.hits}/{cov.n} = "
                      f"{cov.fraction * 100:.0f} % (binomial 95 %: {lo * 100:.0f}-{hi * 100:.0f} %)"
-                     f"; error / s.e. has sd {z_sd:.2f}")
+                     f"; error / s.e. has sd {z_sd:.2f}"
+                     + (f"; {cov.unresolved} member(s) not resolved, left out"
+                        if cov.unresolved else ""))
     for r in failed[:3]:
         lines.append(f"  failed {r.get('member_id')} (seed {r.get('seed')}): {r.get('error')}")
+        if r.get("safe_stop"):
+            lines.append(f"    safe stop {r['safe_stop']}: {r.get('safe_stop_line', '')}")
+    unsafe = [r for r in rows if r.get("safe_stop") == "not confirmed"]
+    if unsafe:
+        lines.append(f"  {len(unsafe)} member(s) whose safe stop was not confirmed, e.g. "
+                     f"{unsafe[0].get('member_id')}: {unsafe[0].get('safe_stop_line')}")
     return lines
 
 
@@ -338,6 +367,7 @@ def write_campaign_report(out: str | Path, title: str, rows: Sequence[Row]) -> P
     sections = []
     cols = [Column("variant", "variant"), Column("what", "parameters and truth"),
             Column("members", "members"), Column("ok", "ok"), Column("failed", "failed"),
+            Column("not_resolved", "not resolved (left out)"),
             Column("wall_median_s", "median wall (s)", digits=3)]
     for n in names:
         cols += [Column(f"bias.{n}", f"{n} bias (%)", 100, 3),
@@ -379,5 +409,7 @@ def write_campaign_report(out: str | Path, title: str, rows: Sequence[Row]) -> P
         sections.append(Section("Members not ok", [], [], [Table(
             "Failed or incomplete members",
             (Column("member_id", "member"), Column("seed", "seed"), Column("status", "status"),
-             Column("error", "error")), failed, "failed.csv")]))
+             Column("error", "error"), Column("safe_stop", "safe stop"),
+             Column("safe_stop_line", "what the safe stop verified")), failed,
+            "failed.csv")]))
     return write_report(out, title, "\n".join(summary_lines(rows)), sections)

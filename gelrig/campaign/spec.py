@@ -2,7 +2,8 @@
 parameters, and a number of seeded replicates; expanded into members.
 
 Every value is checked on load by the parsers of the rig and protocol files (one configuration
-mechanism, ``instrument.fields``), so an error names the campaign file, the table and field,
+mechanism, ``gelrig.instrument.core.fields``), so an error names the campaign file, the table and
+field,
 the value as written and what is allowed::
 
     [campaign]
@@ -46,10 +47,22 @@ import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
-from instrument.errors import ConfigError
-from instrument.fields import Choice, Field, FieldList, Spec, Where, read_table, read_toml
+from gelrig.instrument.analysis.fit_setup import ANISOTROPIC, FIT_GEOMETRY, TERMS
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.fields import (
+    Config,
+    Field,
+    FieldList,
+    Flag,
+    Spec,
+    Where,
+    param,
+    read_table,
+    read_toml,
+)
+from gelrig.instrument.physics.truth import UNLOADING
 
 #: Nesting depth of one value of these list-valued [simulator] keys (a list of [G, tau]).
 _SIM_DEPTH = {"relax": 2, "relax_vertical": 2}
@@ -58,27 +71,30 @@ _HEAD: dict[str, Spec] = {
     "replicates": Field("replicates", "", 1, 1, 100_000, integer=True),
     "first_seed": Field("first_seed", "", 1, 0, 2**31 - 100_001, integer=True),
 }
-_ANALYSIS: dict[str, Spec] = {
-    "terms": Field("terms", "", 1, 1, 2, integer=True),
-    "unloading": Choice("unloading", ("cutoff", "mdr", "truth"), "cutoff"),
-    "anisotropic": Choice("anisotropic", ("false", "true"), "false"),
-    "fit_geometry": Choice("fit_geometry", ("true", "false"), "true"),
-    "model_fit": Choice("model_fit", ("true", "false"), "true"),
-}
-#: Protocol references that name a script (``protocols.script``).
+#: Most members a campaign expands to: 100,000 members take about 20 s and 440 MB to expand
+#: (the paper's compression protocol), and as many seeds as ``replicates`` allows.
+MAX_MEMBERS = 100_000
+#: Protocol references that name a script (``gelrig.protocols.script``).
 SCRIPT_SUFFIXES = (".py",)
 
 
 @dataclass(frozen=True)
-class Analysis:
-    """How each member's run is analysed (``gelrig analyze``'s options)."""
+class Analysis(Config):
+    """How each member's run is analysed (``gelrig analyze``'s options): the ``[analysis]``
+    table, its fields the ladder fit's own declarations (``FitSetup``)."""
 
-    terms: int = 1
-    unloading: str = "cutoff"
-    anisotropic: bool = False
-    fit_geometry: bool = True
+    section: ClassVar[str] = "analysis"
+    exact_integers: ClassVar[bool] = True
+
+    terms: int = param(TERMS)
+    unloading: str = param(dataclasses.replace(
+        UNLOADING, choices=(*UNLOADING.choices, "truth"),
+        help="model fitted: the paper's cutoff, MDR, or the member's own (truth)"))
+    anisotropic: bool = param(ANISOTROPIC)
+    fit_geometry: bool = param(FIT_GEOMETRY)
     #: The ladder-wide model fit (shear); without it a member measures l_c, l_g and mu only.
-    model_fit: bool = True
+    model_fit: bool = param(Flag("model_fit", True, help="the ladder-wide model fit (shear); "
+                                 "false: l_c, l_g and mu per pass only"))
 
 
 @dataclass(frozen=True)
@@ -211,7 +227,7 @@ def _rng(seed: int, key: str) -> Any:
 def resolve_protocol_path(ref: str, base: Path, source: str) -> Path:
     """A protocol reference as a file: ``paper:NAME`` or a path (a protocol file or a script)
     relative to the campaign file."""
-    from protocols.spec import paper_protocol
+    from gelrig.protocols.spec import paper_protocol
 
     if ref.startswith("paper:"):
         try:
@@ -257,12 +273,42 @@ def _member_id(payload: Mapping[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def _check_run_bounds(protocol: Any, param_grid: Mapping[str, list[Any]],
+                      targets: Mapping[str, tuple[int, str]], rig: Any, source: str) -> None:
+    """Refuse a grid whose largest member would run beyond a run's bounds (samples, lab
+    time; protocols/bounds.py). A step's plan depends on its own parameters only, so the
+    largest member is each step at its largest: every step is planned over the combinations
+    of its own axes (at most the member count), not the whole grid."""
+    from gelrig.protocols.bounds import run_bound_error
+    from gelrig.protocols.spec import make_step
+
+    plans = []
+    for index, step in enumerate(protocol.steps):
+        keys = [k for k, (i, _) in targets.items() if i == index]
+        best = None
+        for combo in itertools.product(*(param_grid[k] for k in keys)):
+            raw = dict(protocol.table["step"][index])
+            raw.update({targets[k][1]: v for k, v in zip(keys, combo, strict=True)})
+            where = Where(f"step[{index}]", source)
+            trial = make_step(raw.get("kind"), raw.get("name"), raw, protocol.rig, where,
+                              protocol.sample)
+            plan = trial.definition.plan(trial.params, rig.limits)
+            if best is None or (plan.samples, plan.duration) > (best.samples, best.duration):
+                best = plan
+        if best is not None:
+            plans.append((f"step[{index}] ({step.name})", best))
+    beyond = run_bound_error(plans)
+    if beyond is not None:
+        raise ConfigError(f"[params] {beyond.field}", beyond.value,
+                          f"{beyond.allowed} (the grid's largest member)", source)
+
+
 def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
                    base: Path | None = None) -> CampaignSpec:
     """Validate a campaign given as a TOML table and expand its members."""
-    from protocols.rigfile import default_rig, parse_rig
-    from protocols.script import load_script
-    from protocols.spec import load_protocol, parse_protocol
+    from gelrig.protocols.rigfile import default_rig, parse_rig
+    from gelrig.protocols.script import load_script
+    from gelrig.protocols.spec import load_protocol, parse_protocol
 
     base = Path(".") if base is None else base
     allowed = {"campaign", "analysis", "simulator", "params"}
@@ -301,13 +347,7 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
     if rig.kind != protocol.rig:
         raise where.error("rig", rig_ref or str(rig_path), f"is a {rig.kind} rig; the "
                           f"protocol needs a {protocol.rig} rig")
-    raw_analysis = dict(table.get("analysis") or {})
-    for key in ("anisotropic", "fit_geometry", "model_fit"):
-        if isinstance(raw_analysis.get(key), bool):
-            raw_analysis[key] = "true" if raw_analysis[key] else "false"
-    a = read_table(raw_analysis, _ANALYSIS, Where("analysis", source))
-    analysis = Analysis(int(a["terms"]), a["unloading"], a["anisotropic"] == "true",
-                        a["fit_geometry"] == "true", a["model_fit"] == "true")
+    analysis = Analysis.from_table(table.get("analysis") or {}, source)
     if analysis.unloading == "truth" and rig.kind != "shear":
         raise ConfigError("[analysis] unloading", "truth", "a shear rig's option", source)
 
@@ -325,35 +365,49 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
             parse_rig(trial, source)
             draws[key] = raw
             continue
-        values = _grid(key, raw, _SIM_DEPTH.get(key, 0), sim_where)
-        for value in values:
-            trial = copy.deepcopy(rig_table)
-            trial.setdefault("simulator", {})[key] = value
-            parse_rig(trial, source)
-        truth_grid[key] = values
+        truth_grid[key] = _grid(key, raw, _SIM_DEPTH.get(key, 0), sim_where)
 
-    # [params]: every grid value checked by the protocol file's own parser
+    # [params]: the grid axes, each value checked below by the protocol file's own parser
     par_where = Where("params", source)
     param_grid: dict[str, list[Any]] = {}
     targets: dict[str, tuple[int, str]] = {}
     for key, raw in dict(table.get("params") or {}).items():
         if script is not None:  # a script's parameters: its function's, by name
             param_grid[key] = _grid(key, raw, _depth(script.parameters().get(key)), par_where)
+            continue
+        index, fname, spec = _param_target(key, protocol, par_where)
+        param_grid[key] = _grid(key, raw, 1 if isinstance(spec, FieldList) else 0, par_where)
+        targets[key] = (index, fname)
+
+    replicates, first_seed = int(numbers["replicates"]), int(numbers["first_seed"])
+    # the grid's size by arithmetic, before any member (or grid value) is made
+    axes = {**{f"[simulator] {k}": len(v) for k, v in truth_grid.items()},
+            **{f"[params] {k}": len(v) for k, v in param_grid.items()}}
+    count = math.prod(axes.values()) * replicates
+    if count > MAX_MEMBERS:
+        shape = " x ".join(f"{n:,} ({k})" for k, n in axes.items() if n > 1)
+        raise ConfigError("members", f"{count:,}", f"at most {MAX_MEMBERS:,} per campaign "
+                          f"({shape + ' x ' if shape else ''}{replicates:,} replicates); "
+                          "narrow a grid or run fewer replicates", source)
+    for key, values in truth_grid.items():
+        for value in values:
+            trial = copy.deepcopy(rig_table)
+            trial.setdefault("simulator", {})[key] = value
+            parse_rig(trial, source)
+    for key, values in param_grid.items():
+        if script is not None:
             try:
-                script.with_params(**{key: param_grid[key][0]})
+                script.with_params(**{key: values[0]})
             except ConfigError as exc:
                 raise par_where.error(key, "?", exc.allowed) from None
             continue
-        index, fname, spec = _param_target(key, protocol, par_where)
-        values = _grid(key, raw, 1 if isinstance(spec, FieldList) else 0, par_where)
+        index, fname = targets[key]
         for value in values:
             trial = copy.deepcopy(protocol.table)
             trial["step"][index][fname] = value
             parse_protocol(trial, source)
-        param_grid[key] = values
-        targets[key] = (index, fname)
-
-    replicates, first_seed = int(numbers["replicates"]), int(numbers["first_seed"])
+    if script is None:
+        _check_run_bounds(protocol, param_grid, targets, rig, source)
     # only the options set away from their defaults: a new option leaves the ids as they were
     changed = {k: v for k, v in dataclasses.asdict(analysis).items()
                if v != getattr(Analysis(), k)}

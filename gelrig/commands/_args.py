@@ -10,11 +10,11 @@ import argparse
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from instrument.errors import ConfigError
-from instrument.units import to_si
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.units import to_si
 
 if TYPE_CHECKING:
-    from instrument.contact import RelaxationTerm
+    from gelrig.instrument.physics.contact import RelaxationTerm
 
 
 def quantity(unit: str, minimum: float | None = 0.0, strict: bool = True) -> Callable[[str], float]:
@@ -47,7 +47,7 @@ def poisson(text: str) -> float:
 
 def relax_term(text: str) -> RelaxationTerm:
     """'G:TAU' with G in Pa and TAU in s, e.g. '2e4:2000' or '20 kPa:2000 s'."""
-    from instrument.contact import RelaxationTerm
+    from gelrig.instrument.physics.contact import RelaxationTerm
 
     parts = text.split(":")
     if len(parts) != 2 or not all(p.strip() for p in parts):

@@ -12,11 +12,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     analyze = sub.add_parser("analyze", help="analyse a run directory into an HTML report")
     analyze.add_argument("run_dir", metavar="RUN_DIR")
     analyze.add_argument("--out", default=None, help="report folder (default RUN_DIR/analysis)")
-    # Defaults None, resolved when the command runs: the paper's values import the model.
+    # Defaults None, resolved by analyze_run: the run's sample (run.json), else the paper's.
     analyze.add_argument("--r1", type=quantity("m"), default=None,
-                         help="shear rig: upper sphere radius (default the paper's 9.2 mm)")
+                         help="shear rig: upper sphere radius (default: the run's sample's; "
+                              "a run without one: the paper's 9.2 mm, said in the problems)")
     analyze.add_argument("--r2", type=quantity("m"), default=None,
-                         help="shear rig: lower sphere radius (default the paper's 9.96 mm)")
+                         help="shear rig: lower sphere radius (default: the run's sample's; "
+                              "a run without one: the paper's 9.96 mm, said in the problems)")
     analyze.add_argument("--terms", type=int, choices=(1, 2), default=1,
                          help="relaxation terms of the shear model fit (default 1)")
     analyze.add_argument("--no-model-fit", action="store_true",
@@ -24,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     analyze.add_argument("--fixed-geometry", action="store_true",
                          help="hold the contact search's touch gap and lower-sphere angle fixed "
                               "in the model fit instead of refining them")
-    # The names of instrument.contact.UNLOADING_MODELS, spelt out: the parser stays light.
+    # The names of gelrig.instrument.physics.contact.UNLOADING_MODELS, spelt out: the parser stays
+    # light.
     analyze.add_argument("--unloading", choices=("cutoff", "mdr"), default="cutoff",
                          help="unloading model of the shear model fit: cutoff (the paper's "
                               "no-adhesion cutoff, default) or mdr (dimensionality reduction, "
@@ -37,11 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gelrig.analyze_run import analyze_run
-    from instrument import paper
 
-    r1 = paper.R1_SHEAR if args.r1 is None else args.r1
-    r2 = paper.R2_SHEAR if args.r2 is None else args.r2
-    result = analyze_run(args.run_dir, args.out, r1=r1, r2=r2, terms=args.terms,
+    result = analyze_run(args.run_dir, args.out, r1=args.r1, r2=args.r2, terms=args.terms,
                          fit_model=not args.no_model_fit, fit_geometry=not args.fixed_geometry,
                          unloading=args.unloading, anisotropic=args.anisotropic)
     print(result.summary)

@@ -49,9 +49,10 @@ def run(args: argparse.Namespace) -> int:
     from gelrig.campaign.spec import load_campaign
     from gelrig.campaign.store import RESULTS, ResultStore
 
-    spec = load_campaign(args.campaign)
     out = Path(args.out) if args.out else Path("campaigns") / Path(args.campaign).stem
-    store = ResultStore(out)
+    store = ResultStore(out, warn=lambda line: print(f"gelrig: warning: {line}",
+                                                     file=sys.stderr))  # --out checked first
+    spec = load_campaign(args.campaign)
     members = list(spec.members)
     if args.keep_runs:
         runs = (out / "runs").resolve()

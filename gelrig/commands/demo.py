@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # the model, numpy and matplotlib are imported when the command runs
     import numpy as np
 
-    from instrument.contact import Material
+    from gelrig.instrument.physics.contact import Material
 
 #: Load-cell noise added to the modelled holds (N, 1 sigma), about the USB-6001's 14-bit step
 #: through the default load-cell chain; seeded, so every demo run is identical.
@@ -85,38 +85,42 @@ def _analyse(runs: dict[str, object]) -> dict[str, str]:
 
 def _runs(folder: Path) -> dict[str, object]:
     """Both paper protocols on the built-in simulated rigs, in virtual time."""
-    from gelrig.commands.run import resolve_protocol, resolve_rig, summarise
-    from gelrig.session import execute, metadata
-    from instrument.clock import VirtualClock
-    from instrument.store import RunDirectory
+    from gelrig.commands.run import summarise
+    from gelrig.factory import build_rig
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.protocols.host import RunHost, closing_rig, create_run
+    from gelrig.protocols.resolve import resolve_procedure, resolve_rig
+    from gelrig.terminal import run_in_terminal
 
     found: dict[str, object] = {}
     for kind in ("compression", "shear"):
-        protocol = resolve_protocol(f"paper:{kind}")
+        protocol = resolve_procedure(f"paper:{kind}")
         rig = resolve_rig(None, protocol)
         target = folder / kind
         if (target / "run.json").exists():
             shutil.rmtree(target)
-        run_dir = RunDirectory.create(target, metadata(protocol, rig, "virtual"))
         print(f"\n== {protocol.name}\n   on {rig.name}, virtual time, recording to {target}")
         t0 = time.perf_counter()
-        state, runner = execute(protocol, rig, VirtualClock(), run_dir)
+        with closing_rig(build_rig(rig, VirtualClock())) as built:
+            run_dir = create_run(protocol, rig, "virtual", target)
+            with RunHost(built, protocol, run_dir) as host:
+                state = run_in_terminal(host)
         wall = time.perf_counter() - t0
-        summarise(run_dir, state, runner.reason)
+        summarise(run_dir, state, host.reason)
         lab = sum(float(s.get("finished") or 0) - float(s.get("started") or 0)
                   for s in run_dir.read_metadata()["steps"])
         print(f"   {lab:,.0f} s of lab time in {wall:.1f} s of wall time")
         found[kind] = {"state": state.value, "run_dir": str(target), "wall_s": wall,
-                       "results": {str(k): v for k, v in runner.results.items()}}
+                       "results": {str(k): v for k, v in host.runner.results.items()}}
     return found
 
 
 def _compression(out: Path, rng: np.random.Generator) -> dict[str, object]:
-    from instrument import paper
-    from instrument.analysis import fit_hold, modulus_history
-    from instrument.compression import ramp_hold
-    from instrument.csvio import write_columns
-    from instrument.plots import plot_force, plot_relaxation
+    from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history
+    from gelrig.instrument.core.csvio import write_columns
+    from gelrig.instrument.physics import paper
+    from gelrig.instrument.physics.compression import ramp_hold
+    from gelrig.instrument.reports.plots import plot_force, plot_relaxation
 
     radius, depth = paper.R_COMPRESSION, paper.DEPTH_HOLD
     print(f"Compression: sphere {paper.DIAMETER_COMPRESSION * 1e3:.2f} mm, ramp to "
@@ -141,9 +145,11 @@ def _compression(out: Path, rng: np.random.Generator) -> dict[str, object]:
                    f"ramp and hold ({name})")
         results[name] = {"true": _material_dict(material), "fits": [f.as_dict() for f in fits]}
         for fit in fits:
-            if fit.resolved is not fit:  # not a result: say why, not its values
-                print(f"  {name:6s} {len(fit.relax)}-term fit: {fit.not_resolved} (the "
-                      f"{len(fit.resolved.relax)}-term fit stands)")
+            if not fit.is_resolved:  # not a result: say why, not its values
+                stands = fit.resolved
+                print(f"  {name:6s} {len(fit.relax)}-term fit: not resolved: {fit.reason}"
+                      + (f" (the {len(stands.relax)}-term fit stands)"
+                         if stands is not fit and stands.is_resolved else ""))
                 continue
             taus = ", ".join(f"G {r.g:7.1f} Pa tau {r.tau:7.1f} s" for r in fit.relax)
             print(f"  {name:6s} {len(fit.relax)}-term fit: G_e {fit.g_e:8.1f} Pa, {taus}; "
@@ -153,11 +159,11 @@ def _compression(out: Path, rng: np.random.Generator) -> dict[str, object]:
 
 
 def _shear(out: Path) -> dict[str, object]:
-    from instrument import paper
-    from instrument.analysis import contact_length
-    from instrument.csvio import write_columns
-    from instrument.plots import plot_passes
-    from instrument.sliding import SlidingGeometry, rpm_from_speed, shear_pass
+    from gelrig.instrument.analysis.relaxation import contact_length
+    from gelrig.instrument.core.csvio import write_columns
+    from gelrig.instrument.physics import paper
+    from gelrig.instrument.physics.sliding import SlidingGeometry, rpm_from_speed, shear_pass
+    from gelrig.instrument.reports.plots import plot_passes
 
     geometry = SlidingGeometry(paper.R1_SHEAR, paper.R2_SHEAR, paper.DELTA_MAX_SHOWN)
     print(f"\nShear: R1 {paper.R1_SHEAR * 1e3:.2f} mm over R2 {paper.R2_SHEAR * 1e3:.2f} mm, "

@@ -2,7 +2,9 @@
 
 The JSON holds the fit with as many terms as the data resolve (``terms_resolved``; the fit as
 requested is under ``unresolved_fit`` then, and ``not_resolved`` says why, also on stderr).
-An undetermined standard error is ``null``.
+``resolved`` says whether the reported fit is a result: when not even one term is resolved
+(ADR 0261) the JSON has no values at its top level, only ``resolved: false``, the reason and
+``unresolved_fit`` (not a result). An undetermined standard error is ``null``.
 """
 
 from __future__ import annotations
@@ -30,14 +32,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from instrument.analysis import fit_hold
-    from instrument.csvio import read_columns
+    from gelrig.instrument.analysis.relaxation import fit_hold
+    from gelrig.instrument.core.csvio import read_columns
 
     cols = read_columns(args.file, ["t_s", "force_N"], ["delta_m"])
     fit = fit_hold(cols["t_s"], cols["force_N"], args.radius, args.depth, args.nu, args.terms,
                    delta=cols.get("delta_m"))
-    print(json.dumps(fit.as_dict(), indent=2))
-    if fit.not_resolved:
+    print(json.dumps(fit.as_result(), indent=2))
+    if not fit.resolved.is_resolved:
+        print(f"gelrig fit: not resolved: {fit.resolved.reason}; no result", file=sys.stderr)
+    elif fit.not_resolved:
         print(f"gelrig fit: {fit.not_resolved}; reporting {len(fit.resolved.relax)} term(s)",
               file=sys.stderr)
     return 0

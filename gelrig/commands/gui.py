@@ -16,14 +16,14 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from instrument.errors import ConfigError, GelrigError
+from gelrig.instrument.core.errors import ConfigError, GelrigError
 
 if TYPE_CHECKING:
-    from gui.services import Services
-    from protocols.control import RunControl
-    from protocols.rehearsal import RehearsalReport
-    from protocols.rigfile import RigSpec
-    from protocols.spec import ProtocolSpec
+    from gelrig.gui.services import Services
+    from gelrig.protocols.control import RunControl
+    from gelrig.protocols.procedure import Procedure
+    from gelrig.protocols.rehearsal import RehearsalReport
+    from gelrig.protocols.rigfile import RigSpec
 
 PACES = {"1": 1.0, "10": 10.0, "100": 100.0, "inf": math.inf, "max": math.inf}
 
@@ -38,7 +38,7 @@ XCB_LIBRARIES: tuple[tuple[str, str], ...] = (
     ("xcb-util", "libxcb-util1"), ("X11-xcb", "libx11-xcb1"),
     ("xkbcommon-x11", "libxkbcommon-x11-0"), ("xkbcommon", "libxkbcommon0"),
     ("EGL", "libegl1"), ("GL", "libgl1"), ("fontconfig", "libfontconfig1"),
-    ("dbus-1", "libdbus-1-3"),
+    ("dbus-1", "libdbus-1-3"), ("glib-2.0", "libglib2.0-0"),
 )
 
 
@@ -107,10 +107,9 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
                   runs: Path | None = None) -> Services:
     """The GUI's services, wired to gelrig's loader, factory and session metadata."""
     from gelrig.factory import build_rig
-    from gelrig.session import default_run_dir, metadata
-    from gui.services import Services
-    from protocols.rigfile import RIG_DIR, default_rig, load_rig
-    from protocols.spec import paper_protocol
+    from gelrig.gui.services import Services
+    from gelrig.protocols.rigfile import RIG_DIR, default_rig, load_rig
+    from gelrig.protocols.spec import paper_protocol
 
     def analysis(path: Path) -> str:
         """``gelrig analyze`` on a run: writes RUN_DIR/analysis, returns its summary."""
@@ -119,11 +118,11 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
         result = analyze_run(path)
         return f"{result.summary}\n\nreport: {result.report_path}"
 
-    def rehearsal(protocol: ProtocolSpec, spec: RigSpec, control: RunControl
+    def rehearsal(protocol: Procedure, spec: RigSpec, control: RunControl
                   ) -> RehearsalReport:
         """``gelrig plan``'s rehearsal: the protocol on the rig's twin, in virtual time."""
         from gelrig.factory import build_twin
-        from protocols.rehearsal import rehearse
+        from gelrig.protocols.rehearsal import rehearse
 
         twin = build_twin(spec)
         try:
@@ -131,16 +130,10 @@ def make_services(rig_file: Path | None = None, pace: float = 1.0,
         finally:
             twin.close()
 
-    def run_dir(protocol: ProtocolSpec) -> Path:
-        path = default_run_dir(protocol)
-        return runs / path.name if runs is not None else path
-
     return Services(
         rig_file=rig_file or default_rig("compression"),
         load_rig=load_rig,
         build_rig=build_rig,
-        metadata=metadata,
-        default_run_dir=run_dir,
         pace=pace,
         rig_dir=RIG_DIR,
         runs_dir=runs if runs is not None else default_run_dir_parent(),
@@ -156,7 +149,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
         raise ConfigError("--rig", str(rig_file), "no such rig file")
     check_display(os.environ)  # before Qt loads: its own error names no package
     try:
-        from gui.app import run_app
+        from gelrig.gui.app import run_app
     except ImportError as exc:
         raise GelrigError(f"gelrig gui needs PySide6 and pyqtgraph ({exc}); install them "
                           "with: pip install 'gelrig[gui]'") from None

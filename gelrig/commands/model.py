@@ -7,10 +7,10 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from gelrig.commands._args import add_material, quantity, relax_term
-from instrument.errors import ConfigError
+from gelrig.instrument.core.errors import ConfigError
 
 if TYPE_CHECKING:  # the model is imported when the command runs
-    from instrument.contact import FloatArray, Material
+    from gelrig.instrument.physics.contact import FloatArray, Material
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -68,7 +68,7 @@ def add_unloading(parser: argparse.ArgumentParser) -> None:
 def _mdr_force(args: argparse.Namespace, radius: float, t: FloatArray, delta: FloatArray,
                ) -> FloatArray:
     """F_perp of a fresh MDR contact over the same samples (used with --unloading mdr)."""
-    from instrument.mdr import MdrContact
+    from gelrig.instrument.physics.mdr import MdrContact
 
     peak = max(float(delta.max()), 1e-9)
     return MdrContact(_material(args), radius, delta_max=peak).block(t, delta)
@@ -99,14 +99,14 @@ def check_samples(duration: float, dt: float, what: str) -> None:
 
 
 def _material(args: argparse.Namespace) -> Material:
-    from instrument.contact import Material
+    from gelrig.instrument.physics.contact import Material
 
     return Material(args.g_e, tuple(args.relax), args.nu)
 
 
 def run_compression(args: argparse.Namespace) -> int:
-    from instrument.compression import ramp_hold
-    from instrument.csvio import write_columns
+    from gelrig.instrument.core.csvio import write_columns
+    from gelrig.instrument.physics.compression import ramp_hold
 
     kind, value = args.rate
     speed = value if kind == "speed" else value * 2.0 * args.radius
@@ -124,8 +124,8 @@ def run_compression(args: argparse.Namespace) -> int:
 
 
 def run_shear(args: argparse.Namespace) -> int:
-    from instrument.csvio import write_columns
-    from instrument.sliding import SlidingGeometry, shear_pass
+    from gelrig.instrument.core.csvio import write_columns
+    from gelrig.instrument.physics.sliding import SlidingGeometry, shear_pass
 
     try:
         geometry = SlidingGeometry(args.r1, args.r2, args.delta_max)
@@ -138,7 +138,7 @@ def run_shear(args: argparse.Namespace) -> int:
     material = _material(args)
     vertical = None
     if args.relax_vertical:
-        from instrument.contact import Material
+        from gelrig.instrument.physics.contact import Material
 
         vertical = Material(args.g_e, tuple(args.relax_vertical), args.nu)
     sp = shear_pass(geometry, material, args.speed, args.mu, args.dt, args.margin,

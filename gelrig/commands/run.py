@@ -9,16 +9,17 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from instrument.errors import ConfigError
+from gelrig.instrument.core.errors import ConfigError
 
 if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when a command runs
-    from instrument.store import RunDirectory
-    from protocols.events import RunState
-    from protocols.procedure import Procedure
-    from protocols.rigfile import RigSpec
+    from gelrig.instrument.core.store import RunDirectory
+    from gelrig.protocols.events import RunState
+    from gelrig.protocols.procedure import Procedure
+    from gelrig.protocols.rehearsal import RehearsalReport
+    from gelrig.protocols.rigfile import RigSpec
 
-#: Exit code by the final RunState's value.
-EXIT = {"completed": 0, "failed": 1, "aborted": 3}
+#: Exit code by the final RunState's value (refused: a step refused before it moved).
+EXIT = {"completed": 0, "failed": 1, "aborted": 3, "refused": 2}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--clock", default=None, metavar="real|virtual|paced:K",
                      help="time base (default: virtual on a simulated rig, real otherwise)")
     run.add_argument("--out", default=None, help="run directory (default runs/<time>-<rig>)")
+    run.add_argument("--no-rehearse", action="store_true",
+                     help="skip the rehearsal on the rig's twin before connecting (experts: a "
+                          "script's later steps are then checked only as it sends them)")
     run.set_defaults(handler=cmd_run)
 
     plan = sub.add_parser("plan", help="rehearse a protocol on the rig's simulated twin: "
@@ -60,51 +64,33 @@ def _protocol_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a script's parameter (repeatable): VALUE as in TOML, e.g. "
                              "--param strains=[0.02,0.04] --param hold='600 s'")
+    parser.add_argument("--sample", default=None, metavar="SAMPLE.toml",
+                        help="the sample on the rig: a TOML file with a [sample] table (name, "
+                             "diameter or r1 and r2, material); replaces the protocol's")
+    parser.add_argument("--sample-diameter", default=None, metavar="DIAMETER",
+                        help="the sphere's diameter, e.g. \"12 mm\" (steps that need a size "
+                             "take it from the sample; none is assumed)")
 
 
-def resolve_protocol(name: str, params: list[str] | None = None) -> Procedure:
-    """The protocol ``name`` names; a script called with ``params`` (``NAME=VALUE``)."""
-    from protocols.script import Script, load_procedure
+def resolve(args: argparse.Namespace) -> tuple[Procedure, RigSpec]:
+    """The procedure and the rig the options name (one resolver for every front end)."""
+    from gelrig.protocols.resolve import parse_params, resolve_procedure, resolve_rig
+    from gelrig.protocols.sample import sample_from_options
 
-    procedure = load_procedure(name)
-    if not params:
-        return procedure
-    if not isinstance(procedure, Script):
-        raise ConfigError("--param", params[0], "only scripts (.py) take parameters; a "
-                          "protocol file's are in the file")
-    return procedure.with_params(**dict(_param(text) for text in params))
-
-
-def _param(text: str) -> tuple[str, object]:
-    """``NAME=VALUE`` with VALUE read as a TOML value (a bare word stays a string)."""
-    import tomllib
-
-    name, eq, value = text.partition("=")
-    if not eq or not name.strip().isidentifier():
-        raise ConfigError("--param", text, "NAME=VALUE, e.g. hold='600 s' or strain=0.04")
-    try:
-        return name.strip(), tomllib.loads(f"v = {value}")["v"]
-    except tomllib.TOMLDecodeError:
-        return name.strip(), value
-
-
-def resolve_rig(path: str | None, protocol: Procedure) -> RigSpec:
-    from protocols.rigfile import default_rig, load_rig
-
-    rig = load_rig(path if path else default_rig(protocol.rig))
-    if rig.kind != protocol.rig:
-        raise ConfigError("--rig", rig.source, f"is a {rig.kind} rig; protocol "
-                          f"{protocol.source} needs a {protocol.rig} rig")
-    return rig
+    sample = sample_from_options(args.sample, args.sample_diameter)
+    procedure = resolve_procedure(args.protocol, parse_params(args.param), sample=sample)
+    return procedure, resolve_rig(args.rig, procedure)
 
 
 def print_plan(protocol: Procedure, rig: RigSpec) -> list[str]:
     """Print the plan; returns the messages of failed limit checks."""
-    from protocols.plan import dry_run
-    from protocols.spec import ProtocolSpec
+    from gelrig.protocols.plan import dry_run
+    from gelrig.protocols.spec import ProtocolSpec
 
     print(f"Protocol: {protocol.name}  ({protocol.source})")
     print(f"Rig:      {rig.name}  ({rig.source}{', simulated' if rig.simulated else ''})")
+    sample = protocol.sample
+    print(f"Sample:   {sample.describe() if sample is not None else 'none given'}")
     if not isinstance(protocol, ProtocolSpec):
         given = getattr(protocol, "params", {})
         if given:
@@ -113,37 +99,65 @@ def print_plan(protocol: Procedure, rig: RigSpec) -> list[str]:
               "rig's twin")
         return []
     summary = dry_run(protocol, rig.limits)
+    if summary.beyond is not None:  # refused before anything is built or printed
+        raise summary.beyond.error(protocol.source)
     for line in summary.lines[1:]:  # the first repeats the protocol's name
         print(f"\n{line}" if line[:1].isdigit() or line.startswith("Total") else line)
     return summary.failed
 
 
-def cmd_plan(args: argparse.Namespace) -> int:
-    """The static plan as a header, then the rehearsal on the rig's twin; 2 if it fails."""
-    import sys
+def rehearsal_log() -> Path:
+    """Where a rehearsal's log goes (tracebacks included; the console gets one line): one file
+    in the temporary folder, written afresh by each rehearsal."""
+    import tempfile
+
+    return Path(tempfile.gettempdir()) / "gelrig-rehearsal.log"
+
+
+def rehearse_on_twin(protocol: Procedure, rig: RigSpec) -> tuple[RehearsalReport, float]:
+    """``protocol`` rehearsed on ``rig``'s twin in virtual time (any rig, simulated or not),
+    its log in :func:`rehearsal_log` instead of on the console; the report and the wall
+    seconds it took."""
+    import time
 
     from gelrig.factory import build_twin
-    from protocols.rehearsal import rehearse
+    from gelrig.protocols.host import run_logging
+    from gelrig.protocols.rehearsal import rehearse
 
-    protocol = resolve_protocol(args.protocol, args.param)
-    rig = resolve_rig(args.rig, protocol)
+    path = rehearsal_log()
+    with contextlib.suppress(OSError):
+        path.unlink()
+    started = time.perf_counter()
+    with run_logging(path):
+        twin = build_twin(rig)
+        try:
+            report = rehearse(twin, protocol)
+        finally:
+            twin.close()
+    return report, time.perf_counter() - started
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """The static plan as a header, then the rehearsal on the rig's twin; 2 if it fails."""
+    from gelrig.instrument.core.store import check_path
+
+    out = Path(args.out) if args.out else Path("runs")
+    check_path(out)
+    protocol, rig = resolve(args)
     failed = print_plan(protocol, rig)
     if failed:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
     print("\nRehearsal on the rig's twin (each instrument's simulator, same limits, "
           "virtual time):", flush=True)
-    twin = build_twin(rig)
-    try:
-        report = rehearse(twin, protocol)
-    finally:
-        twin.close()
+    report, _ = rehearse_on_twin(protocol, rig)
     for line in report.lines():
         print(f"\n{line}" if line.startswith("Total") else line)
-    warning = disk_warning(Path(args.out) if args.out else Path("runs"), report.bytes)
+    warning = disk_warning(out, report.bytes)
     if warning:
         print(warning)
     if not report.ok:
-        print(f"gelrig plan: {report.failure()}", file=sys.stderr)
+        print(f"gelrig plan: {report.failure()} (details: {rehearsal_log()})",
+              file=sys.stderr)
         return 2
     return 0
 
@@ -157,11 +171,11 @@ def disk_warning(out: Path, data_bytes: int) -> str:
     free space than the run would write; '' when it has room."""
     import shutil
 
-    from protocols.rehearsal import human_bytes
+    from gelrig.instrument.core.store import check_path, existing_parent
+    from gelrig.protocols.rehearsal import human_bytes
 
-    where = out.resolve()
-    while not where.exists() and where != where.parent:
-        where = where.parent
+    check_path(out)
+    where = existing_parent(out).resolve()
     free = shutil.disk_usage(where).free
     need = data_bytes * _STORE_OVERHEAD
     if free >= need:
@@ -172,35 +186,75 @@ def disk_warning(out: Path, data_bytes: int) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from gelrig.session import LOG_NAME, default_run_dir, execute, make_clock, new_run
-    from instrument.store import check_out_dir
+    from gelrig.factory import build_rig
+    from gelrig.instrument.core.store import check_out_dir
+    from gelrig.instrument.core.units import lab_time
+    from gelrig.protocols.host import (
+        RunHost,
+        closing_rig,
+        create_run,
+        default_run_dir,
+        discard_run,
+        new_folders,
+        preflight,
+        refused_unmoved,
+    )
+    from gelrig.protocols.resolve import make_clock
+    from gelrig.terminal import run_in_terminal
 
-    protocol = resolve_protocol(args.protocol, args.param)
-    rig = resolve_rig(args.rig, protocol)
+    protocol, rig = resolve(args)
     out = Path(args.out) if args.out else default_run_dir(protocol)
     check_out_dir(out)
     failed = print_plan(protocol, rig)
     if failed:
         raise ConfigError("limit check", failed[0], "fix the protocol or the rig limits")
     clock, spec = make_clock(args.clock, rig)
-    run = new_run(protocol, rig, spec, out)
-    with run.lock():
-        print(f"\nrecording to {out.resolve()} ({spec} clock)")
-        try:
-            state, runner = execute(protocol, rig, clock, run)
-        except ConfigError:  # e.g. an instrument that cannot be reached: nothing recorded
-            if run.read_metadata().get("status") == "created":
-                run.discard_empty(also=(LOG_NAME,))
-            raise
-        return _finish(run, state.value, runner.reason)
+    if not args.no_rehearse:  # the whole procedure on the twin before any instrument is opened
+        print("\nrehearsing on the rig's twin (virtual time) ...", flush=True)
+        report, wall = rehearse_on_twin(protocol, rig)
+        if not report.ok:  # a refusal reads as the run's own would; anything else says where
+            tail = "" if report.refusal else (" (found by the rehearsal on the rig's twin: "
+                                              "nothing was connected or moved; details: "
+                                              f"{rehearsal_log()})")
+            print(f"gelrig run: {report.failure()}{tail}", file=sys.stderr)
+            return 2
+        print(f"rehearsal passed in {wall:.1f} s: {len(report.steps)} steps, "
+              f"{lab_time(report.total)} lab time, {report.samples:,} samples "
+              "(--no-rehearse skips it)")
+    # an instrument that cannot be reached, or a step beyond the built rig's caps, is
+    # refused before the run folder is made (exit 2, one line)
+    with closing_rig(build_rig(rig, clock)) as built:
+        refused = preflight(built, protocol)
+        if refused:
+            return refuse("run", refused[0])
+        made = new_folders(out)
+        run = create_run(protocol, rig, spec, out)
+        with RunHost(built, protocol, run) as host:
+            print(f"\nrecording to {out.resolve()} ({spec} clock)")
+            state = run_in_terminal(host)
+    # a script's step refused before anything of the run moved: as if refused up front
+    problem = refused_unmoved(host)
+    if problem:
+        discard_run(run, made)
+        return refuse("run", problem)
+    return _finish(run, state.value, host.reason)
 
 
-def _finish(run: RunDirectory, state: str, reason: str) -> int:
+def refuse(command: str, problem: str) -> int:
+    """A protocol refused before anything moved: one line on stderr, exit code 2."""
+    print(f"gelrig {command}: {problem}; refused before anything moves", file=sys.stderr)
+    return 2
+
+
+def _finish(run: RunDirectory, state: str, reason: str, quiet: bool = False) -> int:
     """Summarise; the exit code follows run.json's final status (a storage fault found while
-    closing the last step turns a completed run into a failed one)."""
+    closing the last step turns a completed run into a failed one). ``quiet``: the summary
+    only, nothing on stderr (the caller prints the one line)."""
     meta = run.read_metadata()
     status = str(meta.get("status", state))
     summarise(run, status, str(meta.get("reason") or reason))
+    if quiet:
+        return EXIT.get(status, 1)
     fault = meta.get("storage_fault")
     if fault:
         print(f"gelrig: {fault}; the run is marked failed. Continue it elsewhere with: "
@@ -209,9 +263,18 @@ def _finish(run: RunDirectory, state: str, reason: str) -> int:
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
-    from gelrig.session import execute, make_clock, prepare_resume, resumable
-    from instrument.store import RunDirectory
-    from protocols.rigfile import parse_rig
+    from gelrig.factory import build_rig
+    from gelrig.instrument.core.store import RunDirectory
+    from gelrig.protocols.host import (
+        RunHost,
+        closing_rig,
+        preflight,
+        prepare_resume,
+        refused_unmoved,
+        resumable,
+    )
+    from gelrig.protocols.resolve import make_clock, resolve_rig
+    from gelrig.terminal import run_in_terminal
 
     source = RunDirectory(args.run_dir)
     if source.read_metadata().get("status") == "completed":
@@ -220,29 +283,51 @@ def cmd_resume(args: argparse.Namespace) -> int:
     meta, protocol, notes = resumable(source)
     for note in notes:
         print(f"note: {note}")
-    rig = parse_rig(meta["rig"], meta.get("rig_file", "<run.json>"))
+    rig = resolve_rig(meta["rig"], protocol, source=str(meta.get("rig_file", "<run.json>")))
     clock, spec = make_clock(args.clock or meta.get("clock"), rig)
     with contextlib.ExitStack() as held:
         held.enter_context(source.lock())
+        # the rig built and the steps left checked against its caps before anything is
+        # copied or archived: a refusal leaves the run as it was (exit 2, one line)
+        built = held.enter_context(closing_rig(build_rig(rig, clock)))
+        done = {i: s.get("results") or {} for i, s in source.completed_steps().items()}
+        refused = preflight(built, protocol, done)
+        if refused:
+            return refuse("resume", refused[0])
         run = source
         if args.out:
             run = source.copy_to(args.out)
             held.enter_context(run.lock())
             print(f"copied {source.path} to {run.path}")
-        completed, archived = prepare_resume(run, meta, spec)
+        completed, archived = prepare_resume(run, meta, spec, clock)
         print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
               + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
-        state, runner = execute(protocol, rig, clock, run, completed)
-        return _finish(run, state.value, runner.reason)
+        with RunHost(built, protocol, run, completed=completed, lock=False) as host:
+            state = run_in_terminal(host)
+    problem = refused_unmoved(host)  # the run's folder and its data stay as they are
+    if problem:
+        _finish(run, state.value, host.reason, quiet=True)
+        return refuse("resume", problem)
+    return _finish(run, state.value, host.reason)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from instrument.csvio import write_columns
-    from instrument.store import RunDirectory, read_step
+    import shutil
+
+    from gelrig.instrument.core.csvio import CSV_BYTES_PER_VALUE, write_chunks
+    from gelrig.instrument.core.store import (
+        RunDirectory,
+        StorageFault,
+        check_path,
+        describe_io_error,
+        existing_parent,
+        open_step,
+    )
 
     run = RunDirectory(args.run_dir)
     meta = run.read_metadata()
     out = Path(args.out) if args.out else run.path / "csv"
+    check_path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "is a file, not a folder; name a folder")
     written, damaged = [], []
@@ -251,18 +336,32 @@ def cmd_export(args: argparse.Namespace) -> int:
         if not path.exists() and not path.is_symlink():
             print(f"step {step['index']} ({step['name']}): {step['file']} is missing")
             continue
+        target = out / (Path(step["file"]).stem + ".csv")
         try:
-            data = read_step(path)
+            with open_step(path) as data:  # every check made before a row is read
+                need = data.rows * len(data.names) * CSV_BYTES_PER_VALUE
+                free = shutil.disk_usage(existing_parent(out)).free
+                if need > free:
+                    raise ConfigError("--out", str(out), f"has {free / 1e9:.1f} GB free; "
+                                      f"{step['file']} ({data.rows:,} rows x "
+                                      f"{len(data.names)} columns) takes up to "
+                                      f"{need / 1e9:.1f} GB as CSV")
+                rows = write_chunks(target, data.names, data.chunks())
         except ConfigError as exc:
+            if exc.field == "--out":
+                raise
             damaged.append(exc)
             print(f"step {step['index']} ({step['name']}): skipped, {exc}")
             continue
-        target = out / (Path(step["file"]).stem + ".csv")
-        write_columns(target, data)
+        except OSError as exc:
+            raise StorageFault(f"{describe_io_error(exc)} writing {target}") from None
         written.append(target)
-        n = len(next(iter(data.values()))) if data else 0
-        print(f"{target} ({n} rows, {step['status']})")
-    (out / "run.json").write_text(json.dumps(meta, indent=2))
+        print(f"{target} ({rows} rows, {step['status']})")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "run.json").write_text(json.dumps(meta, indent=2))
+    except OSError as exc:
+        raise StorageFault(f"{describe_io_error(exc)} writing {out / 'run.json'}") from None
     print(f"exported {len(written)} step(s) to {out.resolve()}")
     if damaged:
         raise damaged[0]
@@ -278,11 +377,34 @@ def summarise(run: RunDirectory, state: RunState | str, reason: str) -> None:
         samples = step.get('samples', 0)
         print(f"  {step['index']}. {step['name']}: {step['status']}, {samples} samples"
               + (f"; {_brief(brief)}" if brief else ""))
-        for fit in results.get("fits", []):
-            if "G_e" in fit:
-                terms = ", ".join(f"G {r['G']:.0f} Pa tau {r['tau']:.0f} s" for r in fit["relax"])
-                print(f"     fit: G_e {fit['G_e']:.0f} Pa, {terms}")
+        for line in fit_lines(results.get("fits", [])):
+            print(f"     {line}")
     print(f"data: {run.path.resolve()}  (gelrig export {run.path} --csv)")
+
+
+def _se(fit: dict[str, Any], name: str) -> str:
+    value = (fit.get("stderr") or {}).get(name)
+    return f" +- {value:.2g}" if isinstance(value, int | float) else " +- undetermined"
+
+
+def fit_lines(fits: list[dict[str, Any]]) -> list[str]:
+    """run.json's fits of a hold as end-of-run lines: each term count once, with standard
+    errors; a count the data do not resolve is ``not resolved: <reason>``, without values."""
+    out = []
+    for k, fit in enumerate(fits, start=1):
+        if "error" in fit:
+            out.append(f"{k}-term fit failed: {fit['error']}")
+            continue
+        requested = int(fit.get("terms_requested", len(fit.get("relax") or [])))
+        resolved = fit.get("resolved", int(fit.get("terms_resolved", 0)) >= requested)
+        if not resolved or requested != len(fit.get("relax") or []):
+            why = fit.get("not_resolved") or "not every term is resolved"
+            out.append(f"{requested}-term fit: not resolved: {why}")
+            continue
+        terms = ", ".join(f"G_{i} {r['G']:.0f}{_se(fit, f'G_{i}')} Pa, tau_{i} {r['tau']:.0f}"
+                          f"{_se(fit, f'tau_{i}')} s" for i, r in enumerate(fit["relax"], 1))
+        out.append(f"{requested}-term fit: G_e {fit['G_e']:.0f}{_se(fit, 'G_e')} Pa, {terms}")
+    return out
 
 
 def _brief(values: dict[str, Any]) -> str:

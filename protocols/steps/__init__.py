@@ -12,12 +12,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
-from instrument.errors import ConfigError
-from protocols.steps.base import StepDefinition, StepParams, StepResult
-from protocols.steps.compression_search import CompressionContactSearch
-from protocols.steps.ladder import SpeedLadder
-from protocols.steps.ramp_hold import RampHold
-from protocols.steps.shear_search import ShearContactSearch
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.protocols.steps.base import StepDefinition, StepParams, StepResult
+from gelrig.protocols.steps.compression_search import CompressionContactSearch
+from gelrig.protocols.steps.ladder import SpeedLadder
+from gelrig.protocols.steps.ramp_hold import RampHold
+from gelrig.protocols.steps.shear_search import ShearContactSearch
 
 #: kind -> definition, for protocol files and scripts
 KINDS: dict[str, StepDefinition[Any, Any, Any]] = {

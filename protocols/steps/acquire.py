@@ -1,7 +1,11 @@
 """Force acquisition on the compression rig while the stage moves or dwells.
 
 Every wait of a compression step reads the DAQ (the acquisition never falls behind), and each
-block is stamped with the plate position, interpolated between stage polls, and published
+block is stamped with the plate position at each sample's time: from the stage's path (the
+commanded motion checked against the stage's reports, :class:`StagePath`) when the stage keeps
+one, else interpolated between polls; a sample whose position cannot be trusted (a report
+that disagrees, a gap in which the stage moved) has ``position_flag`` 1 (issue 24). It is
+published
 through the step context, which checks the interlocks on every sample. Blocks shrink as the
 force nears a watched level (a threshold or an interlock limit), down to one sample, so a
 crossing is seen within one sample period of happening.
@@ -15,11 +19,12 @@ from typing import ClassVar
 
 import numpy as np
 
-from instrument.contact import FloatArray
-from instrument.loadcell import ForceBlock, ForceOverRangeError
-from instrument.noise import MIN_SAMPLES, robust_sigma
-from protocols.context import StepContext
-from protocols.rig import CompressionRig
+from gelrig.instrument.contracts.loadcell import ForceBlock, ForceOverRangeError
+from gelrig.instrument.core.noise import MIN_SAMPLES, robust_sigma
+from gelrig.instrument.core.stage_path import StagePath
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import CompressionRig
 
 #: Stage polls kept to stamp samples with the plate position.
 _POLLS = 256
@@ -28,7 +33,11 @@ _MAX_CATCH_UP = 5.0
 #: Samples kept to estimate the force's noise and trend for the look-ahead.
 _RECENT = 64
 
-COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_range": "1"}
+COLUMNS = {"t_s": "s", "position_m": "m", "delta_m": "m", "force_N": "N", "over_range": "1",
+           "position_flag": "1"}
+#: Without a stage path: polls farther apart than this (s) across which the stage moved leave
+#: the interpolated positions between them flagged.
+_MAX_POLL_GAP = 2.0
 
 
 class ForceRecorder:
@@ -132,9 +141,7 @@ class ForceRecorder:
 
     def _stamp(self, block: ForceBlock) -> dict[str, FloatArray]:
         self._poll()
-        # Samples may be older than the previous poll when the loop lags (paced or real
-        # time): interpolate over the recent poll history, not just the last interval.
-        z = np.interp(block.t, self._polls_t, self._polls_z) if len(block) else np.empty(0)
+        z, flag = self._positions(np.asarray(block.t, dtype=float))
         self._last_volts = np.asarray(block.volts, dtype=float)
         if len(block):
             self._last_t = float(block.t[-1])
@@ -146,7 +153,26 @@ class ForceRecorder:
             "delta_m": z - self.first_touch,
             "force_N": np.asarray(block.force, dtype=float),
             "over_range": np.asarray(block.over_range, dtype=float),
+            "position_flag": flag,
         }
+
+    def _positions(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Plate positions at the sample times ``t`` and their flags (1: untrusted)."""
+        if not t.size:
+            return np.empty(0), np.empty(0)
+        path = getattr(self.rig.stage, "path", None)
+        if isinstance(path, StagePath):
+            z, flag = path.positions(t)
+            return z, flag.astype(float)
+        # A stage that keeps no path: interpolate over the recent polls (the loop may lag
+        # the samples), flagging the spans between polls far apart across which it moved.
+        pt, pz = self._polls_t, self._polls_z
+        z = np.interp(t, pt, pz)
+        if pt.size < 2:
+            return z, np.zeros(t.shape)
+        i = np.clip(np.searchsorted(pt, t), 1, pt.size - 1)
+        gap = (pt[i] - pt[i - 1] > _MAX_POLL_GAP) & (pz[i] != pz[i - 1])
+        return z, gap.astype(float)
 
     def until_stopped(self, watch: tuple[float, ...] = (),
                       stop_above: float | None = None) -> int | None:

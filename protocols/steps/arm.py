@@ -8,10 +8,11 @@ from typing import ClassVar
 
 import numpy as np
 
-from instrument.contact import FloatArray
-from instrument.rheometer import Rheometer, StreamBlock, StreamPoint
-from protocols.context import StepContext
-from protocols.rig import ShearRig
+from gelrig.instrument.contracts.bounded_motion import keep_moving
+from gelrig.instrument.contracts.rheometer import Rheometer, StreamBlock, StreamPoint
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import ShearRig
 
 COLUMNS = {
     "t_s": "s", "angle_rad": "rad", "theta_m": "m", "torque_Nm": "N*m",
@@ -104,7 +105,6 @@ class ArmRecorder:
                 stop_above: float | None = None) -> float | None:
         """Turn at ``|speed|`` (m/s at the arm) until ``angle`` (rad); with ``stop_above`` stop
         early when ``|torque|`` exceeds it and return the angle there, else None."""
-        clock = self.ctx.clock
         start = self.rheo.angle()
         direction = 1.0 if angle > start else -1.0
         if abs(angle - start) * self.arm < 1e-9:
@@ -125,11 +125,16 @@ class ArmRecorder:
                     break
                 watch = {"torque_Nm": stop_above} if stop_above is not None else None
                 step = min(remaining / abs(speed), self.next_read(watch))
-                clock.sleep(max(step, self.interval))
+                self._turning_sleep(max(step, self.interval))
         finally:
             self.rheo.stop()
         self.settle()
         return hit
+
+    def _turning_sleep(self, duration: float) -> None:
+        """Sleep ``duration`` while the arm turns, renewing its rotation (ADR 0201): a wait
+        between reads may be longer than the rotation lasts on the instrument."""
+        keep_moving(self.ctx.clock, self.rheo, duration, self.rheo.config.motion_bound)
 
     def settle(self, timeout: float = 30.0) -> None:
         """Poll until the arm is at rest after a stop."""

@@ -20,7 +20,8 @@ its result::
         def run(self, ctx, params): ...
 
 Parameters are read from a protocol file's ``[[step]]`` table by the one configuration reader
-(:mod:`instrument.fields`), so they carry units, defaults, ranges and help once. A result is
+(:mod:`gelrig.instrument.core.fields`), so they carry units, defaults, ranges and help once. A
+result is
 stored in run.json as a table (:meth:`StepResult.as_dict`) and read back typed on resume; a
 later step asks for an earlier one by type (:meth:`StepContext.earlier`).
 """
@@ -33,9 +34,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Generic, Self, TypeVar
 
-from instrument.fields import Config, Field, Where
-from protocols.context import StepContext
-from protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
+from gelrig.instrument.core.fields import Config, Field, Where
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import CompressionLimits, CompressionRig, ShearLimits, ShearRig
 
 
 @dataclass(frozen=True)
@@ -71,12 +72,14 @@ class PlanCheck:
 
 @dataclass
 class StepPlan:
-    """A step summarised before it runs: lab duration (s), travel (m), what it does."""
+    """A step summarised before it runs: lab duration (s), travel (m), what it does, and the
+    samples (rows) it records at most (0: the step kind does not say; see protocols/bounds)."""
 
     duration: float
     travel: float
     lines: list[str] = field(default_factory=list)
     checks: list[PlanCheck] = field(default_factory=list)
+    samples: float = 0.0
 
 
 RigT = TypeVar("RigT", CompressionRig, ShearRig)
@@ -99,6 +102,10 @@ class StepDefinition(Generic[RigT, ParamsT, ResultT]):
     columns: ClassVar[dict[str, str]] = {}
     Params: type[ParamsT]
     Result: type[ResultT]
+    #: parameters that are sizes of the run's sample, by their key: the sample's field each
+    #: takes (``{"diameter": "diameter"}``). A step given none of its own takes the sample's;
+    #: one given neither is refused before anything moves (docs/decisions/0280)
+    sample_fields: ClassVar[Mapping[str, str]] = {}
 
     @property
     def rig_kind(self) -> str:

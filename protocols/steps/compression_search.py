@@ -9,14 +9,14 @@ import statistics
 from dataclasses import dataclass
 from typing import ClassVar
 
-from instrument.analysis import estimate_first_touch
-from instrument.errors import InstrumentError
-from instrument.fields import Field, param
-from protocols.caps import stage_position_error, stage_speed_error
-from protocols.context import StepContext
-from protocols.rig import CompressionLimits, CompressionRig
-from protocols.steps.acquire import COLUMNS, ForceRecorder
-from protocols.steps.base import (
+from gelrig.instrument.analysis.relaxation import estimate_first_touch
+from gelrig.instrument.core.errors import InstrumentError
+from gelrig.instrument.core.fields import Field, param
+from gelrig.protocols.caps import stage_position_error, stage_speed_error
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import CompressionLimits, CompressionRig
+from gelrig.protocols.steps.acquire import COLUMNS, ForceRecorder
+from gelrig.protocols.steps.base import (
     Limits,
     PlanCheck,
     StepDefinition,
@@ -98,7 +98,7 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
         travel = p.max_travel + approaches * 2 * p.retract
         duration = (p.max_travel / p.speed
                     + approaches * (2 * p.retract / p.speed + per_probe) + p.tare_time)
-        return StepPlan(duration, travel, lines, checks)
+        return StepPlan(duration, travel, lines, checks, samples=duration * p.rate)
 
     def preflight(self, params: SearchParams, rig: CompressionRig,
                   earlier: tuple[type[StepResult], ...]) -> list[str]:
@@ -145,7 +145,9 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
                              position_m=stage.position())
             cols = rec.columns()
             z_cross = float(cols["position_m"][crossing])
-            approach = cols["position_m"][: crossing + 1], cols["force_N"][: crossing + 1]
+            trusted = cols["position_flag"][: crossing + 1] == 0  # flagged: not where it was
+            approach = (cols["position_m"][: crossing + 1][trusted],
+                        cols["force_N"][: crossing + 1][trusted])
             touch = estimate_first_touch(*approach).position
             if not math.isfinite(touch) or touch > z_cross:
                 raise InstrumentError(f"first-touch fit failed on approach {attempt + 1}")

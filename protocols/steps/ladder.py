@@ -8,15 +8,16 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from instrument import paper
-from instrument.errors import GelrigError, LimitError
-from instrument.fields import Field, FieldList, Where, param
-from instrument.sliding import rpm_from_speed
-from protocols.caps import arm_speed_error
-from protocols.context import StepContext
-from protocols.rig import ShearLimits, ShearRig
-from protocols.steps.arm import COLUMNS, ArmRecorder
-from protocols.steps.base import (
+from gelrig.instrument.core.errors import GelrigError, LimitError
+from gelrig.instrument.core.fields import Field, FieldList, Where, param
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.sliding import rpm_from_speed
+from gelrig.protocols.bounds import MAX_LADDER_SPEEDS
+from gelrig.protocols.caps import arm_speed_error
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import ShearLimits, ShearRig
+from gelrig.protocols.steps.arm import COLUMNS, ArmRecorder
+from gelrig.protocols.steps.base import (
     Limits,
     PlanCheck,
     StepDefinition,
@@ -25,7 +26,7 @@ from protocols.steps.base import (
     StepResult,
     given,
 )
-from protocols.steps.shear_search import ShearSearchResult
+from gelrig.protocols.steps.shear_search import ShearSearchResult
 
 #: Most stream points one read may have to collect: half the MCR 501's stream buffer as the
 #: simulator models it (4096 points, UNVERIFIED: docs/decisions/0110), so points are never lost.
@@ -44,10 +45,12 @@ class LadderParams(StepParams):
     first_overlap: float = param(Field("first_overlap", "m", 0.38e-3, 0.0, 5e-3, lo_open=True,
                                        display="mm",
                                        help="shallowest overlap below the touch gap"))
-    overlap_step: float = param(Field("overlap_step", "m", 0.1e-3, 0.0, 1e-3, display="mm",
+    overlap_step: float = param(Field("overlap_step", "m", paper.OVERLAP_STEP, 0.0, 1e-3,
+                                      display="mm",
                                       help="between overlap levels"))
     speeds: tuple[float, ...] = param(FieldList("speeds", _SPEED, tuple(paper.SPEEDS),
-                                             help="sliding speeds, in this order"))
+                                             help="sliding speeds, in this order",
+                                             max_items=MAX_LADDER_SPEEDS))
     travel: float = param(Field("travel", "m", 20e-3, 0.0, 0.15, lo_open=True, display="mm",
                                 help="arc travel of one leg"))
     wait: float = param(Field("wait", "s", 60.0, 0.0, 86400.0, help="rest after each leg"))
@@ -115,7 +118,8 @@ class SpeedLadder(StepDefinition[ShearRig, LadderParams, LadderResult]):
             checks.append(PlanCheck("overlap", ok, f"deepest overlap {max(overlaps) * 1e3:.2f} mm "
                                     f"{'<=' if ok else '>'} limit {limits.max_overlap * 1e3:g} mm"))
         travel = len(overlaps) * len(p.speeds) * 2 * p.travel
-        return StepPlan(len(overlaps) * per_overlap, travel, lines, checks)
+        duration = len(overlaps) * per_overlap
+        return StepPlan(duration, travel, lines, checks, samples=duration / p.interval)
 
     def preflight(self, params: LadderParams, rig: ShearRig,
                   earlier: tuple[type[StepResult], ...]) -> list[str]:

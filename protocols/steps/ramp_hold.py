@@ -4,23 +4,28 @@
 from __future__ import annotations
 
 import logging
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from instrument.analysis import fit_hold, modulus_history
-from instrument.contact import FloatArray
-from instrument.errors import GelrigError
-from instrument.fields import Field, Where, param
-from instrument.hold import find_hold
-from instrument.hold_analysis import measured_overlap
-from instrument.live_fit import LiveFit, StopRule
-from instrument.units import lab_time
-from protocols.caps import stage_position_error, stage_speed_error
-from protocols.context import StepContext
-from protocols.events import FitUpdate
-from protocols.rig import CompressionLimits, CompressionRig
-from protocols.steps.acquire import COLUMNS, ForceRecorder
-from protocols.steps.base import (
+import numpy as np
+
+from gelrig.instrument.analysis.hold import find_hold
+from gelrig.instrument.analysis.hold_analysis import measured_overlap
+from gelrig.instrument.analysis.live_fit import LiveFit, StopRule
+from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history
+from gelrig.instrument.core.errors import GelrigError
+from gelrig.instrument.core.fields import Field, Where, param
+from gelrig.instrument.core.units import lab_time
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.protocols.caps import stage_position_error, stage_speed_error
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.events import FitUpdate
+from gelrig.protocols.rig import CompressionLimits, CompressionRig
+from gelrig.protocols.steps.acquire import COLUMNS, ForceRecorder
+from gelrig.protocols.steps.base import (
     Limits,
     PlanCheck,
     StepDefinition,
@@ -28,7 +33,7 @@ from protocols.steps.base import (
     StepPlan,
     StepResult,
 )
-from protocols.steps.compression_search import SearchResult
+from gelrig.protocols.steps.compression_search import SearchResult
 
 log = logging.getLogger(__name__)
 
@@ -37,13 +42,15 @@ log = logging.getLogger(__name__)
 class RampHoldParams(StepParams):
     """Parameters of a ramp and hold (paper: 6 % of the diameter at 0.002 /s, 3000 s)."""
 
-    diameter: float = param(Field("diameter", "m", 18.63e-3, 0.0, 0.1, lo_open=True,
-                                  display="mm", help="sphere diameter"))
-    strain: float = param(Field("strain", "", 0.06, 0.0, 0.3, lo_open=True,
+    diameter: float = param(Field("diameter", "m", None, 0.0, 0.1, lo_open=True,
+                                  display="mm", help="sphere diameter; default: the run's "
+                                                     "sample's (no paper value stands in)"))
+    strain: float = param(Field("strain", "", paper.STRAIN_HOLD, 0.0, 0.3, lo_open=True,
                                 help="hold overlap / diameter"))
-    strain_rate: float = param(Field("strain_rate", "1/s", 0.002, 0.0, 1.0, lo_open=True,
-                                     help="ramp speed / diameter"))
-    hold: float = param(Field("hold", "s", 3000.0, 0.0, 7 * 86400.0, help="hold duration"))
+    strain_rate: float = param(Field("strain_rate", "1/s", paper.STRAIN_RATE, 0.0, 1.0,
+                                     lo_open=True, help="ramp speed / diameter"))
+    hold: float = param(Field("hold", "s", paper.HOLD, 0.0, 7 * 86400.0,
+                              help="hold duration"))
     rate: float = param(Field("rate", "Hz", 100.0, 100.0, 20e3, help="force sample rate"))
     approach: float = param(Field("approach", "m", 0.1e-3, 0.0, 5e-3, display="mm",
                                   help="start the ramp this far before first touch"))
@@ -112,6 +119,8 @@ class RampHoldResult(StepResult):
     #: why the hold ended: "planned" (fixed hold), "target" (adaptive, met), "maximum"
     #: (adaptive, not met), "requested" (a person ended it)
     hold_end: str = ""
+    #: the ramp refit's standard error (m); 0 when the recorded touch stands in
+    first_touch_ramp_se_m: float = float("nan")
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
@@ -122,6 +131,7 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
     Params = RampHoldParams
     Result = RampHoldResult
     description: ClassVar[str] = "ramp and hold"
+    sample_fields: ClassVar[Mapping[str, str]] = {"diameter": "diameter"}
     columns: ClassVar[dict[str, str]] = COLUMNS
 
     def plan(self, params: RampHoldParams, limits: Limits) -> StepPlan:
@@ -151,7 +161,8 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
                          f"{rule.describe()}; else at {p.hold:g} s); step "
                          f"{lab_time(ramp + rule.min_hold + back)} to "
                          f"{lab_time(ramp + p.hold + back)}")
-        return StepPlan(ramp + p.hold + back, travel, lines, checks)
+        duration = ramp + p.hold + back
+        return StepPlan(duration, travel, lines, checks, samples=duration * p.rate)
 
     def preflight(self, params: RampHoldParams, rig: CompressionRig,
                   earlier: tuple[type[StepResult], ...]) -> list[str]:
@@ -182,7 +193,15 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         ctx.interlocks = rig.interlocks(overlap=True)
         if not stage.status().homed:  # positions mean nothing before homing
             stage.home(wait=True)
-        rec = ForceRecorder(ctx, p.rate, first_touch=touch)
+        # Nobody watches a rehearsal or a campaign member (ctx.watched False): the hold is
+        # counted, not kept, so memory does not grow with its length or rate; a run keeps it
+        # for the final fits.
+        rec = ForceRecorder(ctx, p.rate, first_touch=touch, keep=ctx.watched)
+        chain = getattr(rig.force, "chain", None)
+        tally = _Tally(touch, float(getattr(chain, "compliance", 0.0)))
+        # a rehearsal keeps a thinned copy of the ramp and hold: the fits a script reads
+        thin = _Thinned(((depth + p.approach) / speed + p.hold) * p.rate) \
+            if ctx.rehearsal and not ctx.watched else None
         rec.start()
         stage.set_velocity(limits.fast_speed, limits.acceleration)
         stage.move_to(touch - p.approach, wait=False)
@@ -195,13 +214,25 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         stage.move_to(touch + depth, wait=False)
         ramp_time = (depth + p.approach) / speed
         while stage.is_moving():
-            rec.read()
+            block = rec.read()
+            if not ctx.watched:
+                tally.add(block, hold=False)
+            if thin is not None:
+                thin.add(block)
             elapsed = ctx.clock.now() - t_start
             ctx.progress(elapsed / (ramp_time + p.hold), elapsed,
                          ramp_time + p.hold - elapsed, "ramp")
         live = _LiveHold(ctx, p)
+
+        def hold_block(data: dict[str, FloatArray]) -> bool:
+            if not ctx.watched:
+                tally.add(data, hold=True)
+            if thin is not None:
+                thin.add(data)
+            return live.block(data)
+
         held = rec.dwell(p.hold, progress=True, label="hold", endable=True,
-                         after_block=live.block)
+                         after_block=hold_block)
         end = live.end(held)
         if end == "target":
             log.info("adaptive hold ended after %.1f s of at most %g s: %s met", held, p.hold,
@@ -214,25 +245,109 @@ class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):
         stage.move_to(max(touch - p.retract, 0.0), wait=False)
         rec.keep = False
         rec.until_stopped()
-        fits: list[dict[str, Any]] = []
-        # the fit uses the measured overlap: first touch refitted on this ramp, less the load
-        # cell's deflection (docs/decisions/0160)
-        chain = getattr(rig.force, "chain", None)
-        measured, overlap = measured_overlap(
-            cols["position_m"], cols["force_N"], cols["delta_m"],
-            find_hold(delta=cols["delta_m"]).start, float(getattr(chain, "compliance", 0.0)))
-        # a rehearsal (nobody watches) skips the fits: they inform, they do not steer the run
-        for terms in range(1, int(p.terms) + 1) if ctx.watched else ():
+        history = [s.as_dict() for s in live.fit.history]
+        if thin is not None:  # a rehearsal: the same fits, from every k-th sample of the twin
             try:
-                fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
-                               terms=terms, delta=cols["delta_m"],
-                               overlap_stderr=measured.stderr)
-                fits.append(fit.as_dict())
-            except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
-                fits.append({"error": str(exc)})
+                measured, fits = _fits(thin.columns(), tally.compliance, p)
+            except (GelrigError, ValueError) as exc:  # too short a record to find the hold
+                return RampHoldResult(touch, depth, speed, tally.samples,
+                                      [{"error": str(exc), "rehearsal": thin.note}],
+                                      math.nan, tally.held(), held, history, end)
+            return RampHoldResult(touch, depth, speed, tally.samples,
+                                  [{**fit, "rehearsal": thin.note} for fit in fits],
+                                  measured.first_touch, measured.held, held, history, end,
+                                  measured.stderr)
+        if not ctx.watched:  # counted only: no ramp refit, no fits (the analysis makes them)
+            return RampHoldResult(touch, depth, speed, tally.samples, [], math.nan,
+                                  tally.held(), held, history, end)
+        measured, fits = _fits(cols, tally.compliance, p)
         return RampHoldResult(touch, depth, speed, int(cols["t_s"].size), fits,
-                              measured.first_touch, measured.held, held,
-                              [s.as_dict() for s in live.fit.history], end)
+                              measured.first_touch, measured.held, held, history, end,
+                              measured.stderr)
+
+
+def _fits(cols: dict[str, FloatArray], compliance: float, p: RampHoldParams
+          ) -> tuple[Any, list[dict[str, Any]]]:
+    """The measured overlap and the relaxation fits (1..terms) of a ramp-and-hold record.
+
+    The fit uses the measured overlap: first touch refitted on this ramp, less the load
+    cell's deflection (docs/decisions/0160)."""
+    measured, overlap = measured_overlap(
+        cols["position_m"], cols["force_N"], cols["delta_m"],
+        find_hold(delta=cols["delta_m"]).start, compliance,
+        trusted=cols["position_flag"] == 0)  # flagged positions stay out of the refit
+    fits: list[dict[str, Any]] = []
+    for terms in range(1, int(p.terms) + 1):
+        try:
+            fit = fit_hold(cols["t_s"], cols["force_N"], p.diameter / 2, overlap,
+                           terms=terms, delta=cols["delta_m"],
+                           overlap_stderr=measured.stderr)
+            # run.json says whether the fit it holds is a result (ADR 0261)
+            fits.append({**fit.as_dict(), "resolved": fit.resolved.is_resolved})
+        except (GelrigError, ValueError) as exc:  # a hold ended early may be too short
+            fits.append({"error": str(exc)})
+    return measured, fits
+
+
+#: Most samples a rehearsal keeps of one ramp and hold for its fits (every k-th one): about
+#: 160 kB whatever the hold's length or rate.
+THIN_POINTS = 4_000
+#: The columns the fits read.
+_FITTED = ("t_s", "position_m", "delta_m", "force_N", "position_flag")
+
+
+class _Thinned:
+    """Every ``every``-th sample of a ramp and hold (at most about :data:`THIN_POINTS`), in
+    constant memory: what a rehearsal fits, so that a script reading ``fits`` rehearses with
+    values of the same fields and nearly the same numbers as the run's."""
+
+    def __init__(self, expected: float, most: int = THIN_POINTS):
+        self.every = max(1, math.ceil(expected / most))
+        self._phase = 0  # samples seen so far, modulo ``every``
+        self.kept: dict[str, list[FloatArray]] = {}
+
+    @property
+    def note(self) -> str:
+        """What a rehearsed fit is: said in the fit's ``rehearsal`` field."""
+        return f"fitted on the twin's record, every {self.every}th sample"
+
+    def add(self, data: dict[str, FloatArray]) -> None:
+        n = int(data["t_s"].size)
+        if not n:
+            return
+        first = -self._phase % self.every
+        for key in _FITTED:  # copies: a view would keep the whole block alive
+            self.kept.setdefault(key, []).append(np.array(data[key][first::self.every]))
+        self._phase = (self._phase + n) % self.every
+
+    def columns(self) -> dict[str, FloatArray]:
+        return {k: np.concatenate(v) for k, v in self.kept.items()}
+
+
+class _Tally:
+    """What a ramp and hold needs of its samples when they are not kept: how many the step
+    records from the ramp on, and the mean overlap over the hold (plate position less first
+    touch, less the load cell's deflection) -- in constant memory."""
+
+    def __init__(self, touch: float, compliance: float):
+        self.touch = touch
+        self.compliance = compliance
+        self.samples = 0
+        self._held_sum = 0.0
+        self._held_n = 0
+
+    def add(self, data: dict[str, FloatArray], hold: bool) -> None:
+        n = int(data["t_s"].size)
+        self.samples += n
+        if hold and n:
+            overlap = data["position_m"] - self.compliance * data["force_N"] - self.touch
+            finite = overlap[np.isfinite(overlap)]
+            self._held_sum += float(finite.sum())
+            self._held_n += int(finite.size)
+
+    def held(self) -> float:
+        """Mean overlap over the hold (m), against the recorded first touch; NaN if none."""
+        return self._held_sum / self._held_n if self._held_n else math.nan
 
 
 class _LiveHold:

@@ -16,14 +16,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from instrument.errors import InstrumentError
-from instrument.fields import Field, Where, param
-from instrument.sliding import speed_from_rpm
-from protocols.caps import arm_speed_error
-from protocols.context import StepContext
-from protocols.rig import ShearLimits, ShearRig
-from protocols.steps.arm import COLUMNS, ArmRecorder
-from protocols.steps.base import (
+from gelrig.instrument.core.errors import InstrumentError
+from gelrig.instrument.core.fields import Field, Where, param
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.sliding import speed_from_rpm
+from gelrig.protocols.caps import arm_speed_error
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.rig import ShearLimits, ShearRig
+from gelrig.protocols.steps.arm import COLUMNS, ArmRecorder
+from gelrig.protocols.steps.base import (
     Limits,
     PlanCheck,
     StepDefinition,
@@ -44,9 +45,10 @@ class ShearSearchParams(StepParams):
                                 help="coarse gap step"))
     fine: float = param(Field("fine", "m", 0.1e-3, 0.0, 1e-3, lo_open=True, display="mm",
                               help="fine gap step"))
-    rpm: float = param(Field("rpm", "", 0.5, 0.0, 10.0, lo_open=True, help="sweep rate (rpm)"))
-    threshold: float = param(Field("threshold", "N*m", 0.2e-3, 0.0, 0.1, lo_open=True,
-                                   help="contact torque"))
+    rpm: float = param(Field("rpm", "rpm", paper.CONTACT_SEARCH_RPM, 0.0, 10.0, lo_open=True,
+                             help="the arm's sweep rate (revolutions per minute)"))
+    threshold: float = param(Field("threshold", "N*m", paper.CONTACT_TORQUE, 0.0, 0.1,
+                                   lo_open=True, help="contact torque"))
     reference_angle: float = param(Field("reference_angle", "rad", 0.0, -2 * math.pi,
                                          2 * math.pi,
                                          help="arm angle to sweep around and to return to"))
@@ -91,7 +93,7 @@ class ShearContactSearch(StepDefinition[ShearRig, ShearSearchParams, ShearSearch
 
     def plan(self, params: ShearSearchParams, limits: Limits) -> StepPlan:
         p = params
-        arm_speed = speed_from_rpm(p.rpm, 0.027)
+        arm_speed = speed_from_rpm(p.rpm, paper.ARM)
         descents = (p.safe_gap - p.min_gap) / p.coarse
         sweep_time = 2 * p.sweep / arm_speed
         lines = [
@@ -111,7 +113,8 @@ class ShearContactSearch(StepDefinition[ShearRig, ShearSearchParams, ShearSearch
                                     f"{limits.max_torque * 1e3:g} mN m"))
         duration = (descents + p.coarse / p.fine + p.touch_passes) \
             * sweep_time
-        return StepPlan(duration, (descents + 10) * 2 * p.sweep, lines, checks)
+        return StepPlan(duration, (descents + 10) * 2 * p.sweep, lines, checks,
+                        samples=duration / p.interval)
 
     def preflight(self, params: ShearSearchParams, rig: ShearRig,
                   earlier: tuple[type[StepResult], ...]) -> list[str]:

@@ -7,9 +7,16 @@ thread is needed in virtual time. Transports: ``protocol_kdc101sim`` (in-process
 and ``serve`` (TCP / pty server).
 
 It speaks only when asked, plus the status stream and the move-completed / stopped / homed
-notices; a request it does not know or rejects is logged (logger ``simulators.kdc101``) and
+notices; a request it does not know or rejects is logged (logger ``gelrig.simulators.kdc101``) and
 recorded in ``rejected``, never answered with an error message (ADR 0101). Direction words
 and bits follow ``SimConfig.direction`` (ADR 0100).
+
+It survives any bytes: garbage is skipped up to the next plausible header, a message of the
+wrong shape (a header-only form of a message that carries data, a payload of the wrong
+length) or one whose handling fails is logged and dropped, and a partial frame that no byte
+has followed for :data:`FRAME_GAP_S` of wall time is dropped when the next bytes arrive (a
+UART receiver's inter-byte timeout), so garbage that looks like the head of a long frame
+cannot swallow the next request.
 """
 
 from __future__ import annotations
@@ -18,14 +25,15 @@ import bisect
 import logging
 import math
 import threading
+import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.kdc101 import payloads as pl
-from drivers.kdc101.apt import (
+from gelrig.drivers.kdc101 import payloads as pl
+from gelrig.drivers.kdc101.apt import (
     CHANNEL,
     CONTROLLER,
     FORMS,
@@ -38,11 +46,8 @@ from drivers.kdc101.apt import (
     data_message,
     encode,
 )
-from instrument.clock import Clock
-from instrument.errors import ConfigError
-from instrument.stage import DIRECTIONS, FORWARD_IS_NEGATIVE
-from simulators.kdc101 import messages as sm
-from simulators.kdc101.kinematics import (
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.core.motion import (  # the stage's kinematics (shared with the driver)
     Phase,
     Trajectory,
     clip_to_travel,
@@ -50,51 +55,27 @@ from simulators.kdc101.kinematics import (
     plan_stop,
     plan_velocity,
 )
+from gelrig.simulators.kdc101 import messages as sm
+from gelrig.simulators.kdc101.config import SimConfig
 
-log = logging.getLogger("simulators.kdc101")
+#: Messages a simulator keeps for inspection (tests, fault reports): the latest ones.
+KEPT_MESSAGES = 4096
+
+
+def keep_latest(items: list[Any]) -> None:
+    """Trim ``items`` to its latest KEPT_MESSAGES once it holds twice as many (amortised
+    O(1))."""
+    if len(items) > 2 * KEPT_MESSAGES:
+        del items[:-KEPT_MESSAGES]
+
+
+log = logging.getLogger("gelrig.simulators.kdc101")
 
 T_UNIT = 2048 / 6e6  # KDC101 velocity/acceleration time unit (s)
 UPDATE_PERIOD_S = 0.1
 MAX_UNACKED_UPDATES = 50
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """What the simulated hardware is: its true encoder scale, travel, power-on defaults."""
-
-    serial_number: int = 27000001
-    counts_per_mm: float = 34554.96  # the actuator's true scale (may differ from the rig file)
-    travel_m: float = 25e-3
-    start_position_m: float = 5e-3  # extension from the home switch at power-on
-    home_offset_m: float = 0.1e-3  # home position beyond the switch (UNVERIFIED)
-    max_velocity_m_s: float = 2.0e-3  # power-on velocity parameters (UNVERIFIED)
-    acceleration_m_s2: float = 1.5e-3
-    home_velocity_m_s: float = 1.0e-3
-    velocity_cap_m_s: float = 2.6e-3  # requests above are refused with an error reply
-    accel_cap_m_s2: float = 10e-3
-    firmware: tuple[int, int, int] = (3, 0, 10)
-    stage_id: int = 9  # Z825 in the KDC101 stage table
-    direction: str = FORWARD_IS_NEGATIVE  # what APT "forward" means (ADR 0100)
-
-    def __post_init__(self) -> None:
-        if not 27000000 <= self.serial_number <= 27999999:
-            raise ConfigError("serial_number", self.serial_number, "a KDC101 serial is 27xxxxxx")
-        for name in ("counts_per_mm", "travel_m", "max_velocity_m_s", "acceleration_m_s2",
-                     "home_velocity_m_s", "velocity_cap_m_s", "accel_cap_m_s2"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(name, getattr(self, name), "must be > 0")
-        if not 0 <= self.start_position_m <= self.travel_m:
-            raise ConfigError("start_position_m", self.start_position_m,
-                              f"must lie in [0, {self.travel_m}] m")
-        if self.direction not in DIRECTIONS:
-            raise ConfigError("direction", self.direction, f"allowed: {', '.join(DIRECTIONS)}")
-        if not 0 <= self.home_offset_m < self.travel_m:
-            raise ConfigError("home_offset_m", self.home_offset_m,
-                              f"must lie in [0, {self.travel_m}) m")
-
-    @property
-    def counts_per_m(self) -> float:
-        return self.counts_per_mm * 1e3
+#: Wall seconds after which a partial frame no byte has followed is dropped.
+FRAME_GAP_S = 0.25
 
 
 class KDC101Simulator:
@@ -113,6 +94,8 @@ class KDC101Simulator:
         self.directions = pl.Directions.named(c.direction)
         self._framer = AptFramer()
         self._out = bytearray()
+        #: bytes said but still on their way to the host: (arrival time, bytes), in order
+        self._in_flight: list[tuple[float, bytes]] = []
         self.kinematics = Trajectory(c.start_position_m, now)
         self._origin_m = c.start_position_m
         self._origins = [(now, c.start_position_m)]  # (from time, counter origin) history
@@ -138,9 +121,16 @@ class KDC101Simulator:
         # Fault injection and bookkeeping.
         self.muted = False
         self.connected = True
+        #: the latest requests received, oldest first (at most 2 x KEPT_MESSAGES: a simulator
+        #: that runs for days does not keep every message it ever got)
         self.received: list[Message] = []
         self.rejected: list[tuple[Message, str]] = []  # requests logged instead of answered
         self.garbage_received = 0
+        self.stale_dropped = 0  # bytes of partial frames dropped after FRAME_GAP_S
+        #: wall clock of the inter-byte timeout (not the simulated clock: a virtual clock
+        #: stands still between a client's writes); replaceable in tests
+        self.wall: Callable[[], float] = time.monotonic
+        self._last_rx = self.wall()
 
     # ---- unit conversions -------------------------------------------------------------
     def _apt_velocity(self, v_m_s: float) -> int:
@@ -244,7 +234,8 @@ class KDC101Simulator:
         with self._lock:
             t_upd = self._next_update if self._updates else math.inf
             t_end = self._motion_end if self._motion is not None else math.inf
-            return min(t_upd, t_end)
+            t_out = self._in_flight[0][0] if self._in_flight else math.inf
+            return min(t_upd, t_end, t_out)
 
     def _advance(self, now: float) -> None:
         """Produce, in time order, everything due up to ``now``."""
@@ -253,6 +244,7 @@ class KDC101Simulator:
             t_end = self._motion_end if self._motion is not None else math.inf
             t = min(t_upd, t_end)
             if t > now:
+                self._deliver(now)
                 return
             if t_end <= t_upd:
                 self._finish_motion(t_end)
@@ -267,21 +259,35 @@ class KDC101Simulator:
         event = self._end_event
         self._motion, self._motion_end, self._end_event = None, math.inf, None
         if event == MsgId.MOT_MOVE_HOMED:
-            self._emit(command(event, CHANNEL, 0, to_host=True))
+            self._emit(command(event, CHANNEL, 0, to_host=True), t)
         elif event is not None:
-            self._emit(data_message(event, self._dc_status(t).pack(), to_host=True))
+            self._emit(data_message(event, self._dc_status(t).pack(), to_host=True), t)
 
     def _send_update(self, t: float) -> None:
         self._emit(data_message(MsgId.MOT_GET_DCSTATUSUPDATE, self._dc_status(t).pack(),
-                                to_host=True))
+                                to_host=True), t)
         self.unacked_updates += 1
-        self._next_update = t + UPDATE_PERIOD_S
+        self._next_update = t + self.config.update_period_s
         if self.unacked_updates >= MAX_UNACKED_UPDATES:
             self._updates = False  # the host stopped acknowledging: the stream stops
 
-    def _emit(self, msg: Message) -> None:
-        if not self.muted:
+    def _emit(self, msg: Message, t: float | None = None) -> None:
+        """Say ``msg`` at ``t`` (default now): it reaches the host ``reply_latency`` later."""
+        if self.muted:
+            return
+        latency = self.config.reply_latency
+        if latency <= 0:
             self._out += encode(msg)
+            return
+        at = (self.clock.now() if t is None else t) + latency
+        if self._in_flight and at < self._in_flight[-1][0]:
+            at = self._in_flight[-1][0]  # the link keeps the order
+        self._in_flight.append((at, encode(msg)))
+
+    def _deliver(self, now: float) -> None:
+        """Move what has reached the host by ``now`` to the host's side of the link."""
+        while self._in_flight and self._in_flight[0][0] <= now:
+            self._out += self._in_flight.pop(0)[1]
 
     # ---- the transport side -----------------------------------------------------------
     def receive(self, data: bytes) -> None:
@@ -289,17 +295,31 @@ class KDC101Simulator:
         with self._lock:
             now = self.clock.now()
             self._advance(now)
+            wall = self.wall()
+            if self._framer.pending and wall - self._last_rx > FRAME_GAP_S:
+                dropped = self._framer.clear()
+                self.stale_dropped += dropped
+                log.warning("KDC101 %d dropped %d bytes of a partial frame no byte followed "
+                            "for %.2f s", self.config.serial_number, dropped,
+                            wall - self._last_rx)
+            self._last_rx = wall
             self._framer.feed(data)
             while True:
                 try:
                     msg = self._framer.next_message()
-                except AptFramingError:
+                except AptFramingError as exc:
                     self.garbage_received += 1
+                    log.warning("KDC101 %d: %s", self.config.serial_number, exc)
                     continue
                 if msg is None:
                     return
                 self.received.append(msg)
-                self._handle(msg, now)
+                keep_latest(self.received)
+                try:
+                    self._handle(msg, now)
+                except Exception as exc:  # a payload the handler cannot take: drop it
+                    log.debug("handling %r failed", msg, exc_info=True)
+                    self._reject(msg, f"malformed: {type(exc).__name__}: {exc}")
 
     def read(self, max_bytes: int | None = None) -> bytes:
         """Bytes the controller has sent up to now (at most ``max_bytes``)."""
@@ -341,13 +361,16 @@ class KDC101Simulator:
             self.connected = False
 
     def reconnect(self) -> None:
+        """The link is back (a new client): a partial frame of the last one is forgotten."""
         with self._lock:
             self.connected = True
+            self._framer.clear()
 
     # ---- message handling -------------------------------------------------------------
     def _reject(self, msg: Message, why: str) -> None:
         """Log a request the controller does not obey; nothing goes on the wire."""
         self.rejected.append((msg, why))
+        keep_latest(self.rejected)
         log.warning("KDC101 %d ignored %r: %s", self.config.serial_number, msg, why)
 
     def inject_error(self, msg_id: int, code: int, text: str, rich: bool = True) -> None:
@@ -368,6 +391,10 @@ class KDC101Simulator:
         if handler is None:
             self._reject(msg, f"unknown message id 0x{msg.msg_id:04X}")
             return
+        shape = _shape_error(msg)
+        if shape:
+            self._reject(msg, shape)
+            return
         form = FORMS.get(msg.msg_id)
         with_channel = (form is not None and form.has_channel) or msg.msg_id in _DATA_WITH_CHANNEL
         channel = msg.data[0] | msg.data[1] << 8 if msg.data and with_channel else None
@@ -387,7 +414,7 @@ class KDC101Simulator:
     def _on_start_updates(self, msg: Message, now: float) -> None:
         self._updates = True
         self.unacked_updates = 0
-        self._next_update = now + UPDATE_PERIOD_S
+        self._next_update = now + self.config.update_period_s
 
     def _on_stop_updates(self, msg: Message, now: float) -> None:
         self._updates = False
@@ -571,13 +598,8 @@ class KDC101Simulator:
 
     # ---- parameter blocks and the rest of the KDC101 set ------------------------------
     def _on_set_block(self, msg: Message, now: float) -> None:
-        block = sm.BLOCK_BY_SET[msg.msg_id]
-        data = msg.data or b""
-        if len(data) not in block.lengths():
-            self._reject(msg, f"{block.name} parameters: {len(data)} bytes, "
-                              f"expected {' or '.join(map(str, block.lengths()))}")
-            return
-        data = data.ljust(block.length, b"\0")[:block.length]
+        block = sm.BLOCK_BY_SET[msg.msg_id]  # its length checked by _shape_error
+        data = (msg.data or b"").ljust(block.length, b"\0")[:block.length]
         if block.name == "jog":
             jog = sm.JogParams.unpack(data)
             v = self._velocity_from_apt(jog.max_velocity)
@@ -635,6 +657,33 @@ _HANDLERS: dict[int, Callable[[KDC101Simulator, Message, float], None]] = {
     **{b.set_id: KDC101Simulator._on_set_block for b in sm.BLOCKS},
     **{b.req_id: KDC101Simulator._on_req_block for b in sm.BLOCKS},
 }
+
+#: The shapes of the messages outside the driver's table (which the framer checks):
+#: () header only, else the payload lengths accepted.
+_SIM_SHAPES: dict[int, tuple[int, ...]] = {
+    sm.SimMsgId.HW_DISCONNECT: (),
+    sm.SimMsgId.HUB_REQ_BAYUSED: (),
+    sm.SimMsgId.MOT_SET_ENCCOUNTER: (sm.CHAN_LONG.size,),
+    sm.SimMsgId.MOT_REQ_ENCCOUNTER: (),
+    sm.SimMsgId.MOT_MOVE_JOG: (),
+    **{b.set_id: b.lengths() for b in sm.BLOCKS},
+    **{b.req_id: () for b in sm.BLOCKS},
+}
+
+
+def _shape_error(msg: Message) -> str:
+    """Why ``msg`` does not have its message's shape ('' when it does)."""
+    lengths = _SIM_SHAPES.get(msg.msg_id)
+    if lengths is None:  # the driver's table: the framer checked it
+        return ""
+    name = sm.SimMsgId(msg.msg_id).name
+    got = "a header only" if msg.data is None else f"{len(msg.data)} data bytes"
+    if not lengths:
+        return "" if msg.data is None else f"{name}: {got}, expected a header only"
+    if msg.data is None or len(msg.data) not in lengths:
+        return f"{name}: {got}, expected {' or '.join(map(str, lengths))} data bytes"
+    return ""
+
 
 # Payloads (outside the driver's table) whose first word is the channel.
 _DATA_WITH_CHANNEL = {sm.SimMsgId.MOT_SET_ENCCOUNTER, *(b.set_id for b in sm.BLOCKS)}

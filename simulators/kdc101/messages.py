@@ -15,7 +15,7 @@ from enum import IntEnum
 
 
 class SimMsgId(IntEnum):
-    """Ids outside ``drivers.kdc101.apt.MsgId`` that the simulator handles."""
+    """Ids outside ``gelrig.drivers.kdc101.apt.MsgId`` that the simulator handles."""
 
     HW_DISCONNECT = 0x0002
     HUB_REQ_BAYUSED = 0x0065

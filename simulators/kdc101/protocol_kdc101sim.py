@@ -1,6 +1,6 @@
 """pyserial URL handler ``kdc101sim://NAME``: a port wired to an in-process simulator.
 
-Importing ``simulators.kdc101`` adds this package to ``serial.protocol_handler_packages``, so
+Importing this module adds its package to ``serial.protocol_handler_packages``, so
 ``serial.serial_for_url("kdc101sim://NAME")`` works for any client (our driver, pylablib).
 Timeouts are on the simulator's clock: with a virtual clock a read that waits jumps time to
 the controller's next message, or to the timeout if none will come, without real waiting.
@@ -15,7 +15,7 @@ from typing import Any
 import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from simulators.kdc101.device import KDC101Simulator
+from gelrig.simulators.kdc101.device import KDC101Simulator, keep_latest
 
 SCHEME = "kdc101sim"
 _registry: dict[str, KDC101Simulator] = {}
@@ -49,7 +49,8 @@ class Serial(SerialBase):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.sim: KDC101Simulator | None = None
-        self.write_log: list[bytes] = []  # every write attempted, even on a dead link
+        #: the latest writes attempted, even on a dead link (bounded: see keep_latest)
+        self.write_log: list[bytes] = []
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
@@ -106,6 +107,7 @@ class Serial(SerialBase):
             raise PortNotOpenError()
         payload = bytes(data)
         self.write_log.append(payload)
+        keep_latest(self.write_log)
         self._live().receive(payload)
         return len(payload)
 
@@ -146,5 +148,8 @@ class Serial(SerialBase):
 
 def install() -> None:
     """Let ``serial.serial_for_url`` resolve ``kdc101sim://`` (idempotent)."""
-    if "simulators.kdc101" not in serial.protocol_handler_packages:
-        serial.protocol_handler_packages.append("simulators.kdc101")
+    if "gelrig.simulators.kdc101" not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append("gelrig.simulators.kdc101")
+
+
+install()

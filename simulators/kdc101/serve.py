@@ -11,6 +11,7 @@ import abc
 import argparse
 import contextlib
 import logging
+import math
 import os
 import select
 import signal
@@ -20,15 +21,16 @@ import threading
 import tty
 from types import FrameType
 
-from instrument.clock import Clock, clock_from_spec
-from instrument.errors import ConfigError
-from instrument.units import to_si
-from simulators.kdc101.device import KDC101Simulator, SimConfig
-from simulators.serve_options import kdc101_arguments as add_arguments
+from gelrig.instrument.core.clock import Clock, clock_from_spec
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.options import config_from_options
+from gelrig.simulators.kdc101.config import SimConfig
+from gelrig.simulators.kdc101.device import KDC101Simulator
+from gelrig.simulators.serve_options import kdc101_arguments as add_arguments
 
 POLL_S = 0.002  # how often the loop looks for due status updates and motion events
 
-log = logging.getLogger("simulators.kdc101")
+log = logging.getLogger("gelrig.simulators.kdc101")
 
 
 class _Server(abc.ABC):
@@ -62,9 +64,21 @@ class _Server(abc.ABC):
     def close(self) -> None:
         """Release sockets / file descriptors."""
 
+    def _wait(self) -> float:
+        """Real seconds to wait for the host's bytes: at most POLL_S, and no later than the
+        simulator's next message on a paced clock (a status update goes out at its period in
+        lab time, not POLL_S times the pace later)."""
+        clock = self.sim.clock
+        rate = float(getattr(clock, "rate", 1.0))
+        if not math.isfinite(rate):
+            return POLL_S
+        due = (self.sim.next_event_time() - clock.now()) / rate
+        return min(POLL_S, max(0.0, due)) if math.isfinite(due) else POLL_S
+
     def _pump(self, fd: int, recv: int, send: int) -> bool:
-        """One turn: read what came, answer what is due. False when the peer is gone."""
-        readable, _, _ = select.select([recv], [], [], POLL_S)
+        """One turn: read what came, answer what is due. False when the peer is gone (or
+        the simulator failed: logged, and the link is dropped, never the server)."""
+        readable, _, _ = select.select([recv], [], [], self._wait())
         if readable:
             try:
                 data = os.read(recv, 4096)
@@ -72,10 +86,19 @@ class _Server(abc.ABC):
                 return False
             if not data:
                 return False
-            self.sim.receive(data)
+            try:
+                self.sim.receive(data)
+            except Exception:  # the simulator drops what it cannot take; this is a bug
+                log.exception("kdc101 simulator at %s: receiving %d bytes failed; dropped",
+                              self.address, len(data))
         if not self.sim.connected:
             return False
-        out = self.sim.read()
+        try:
+            out = self.sim.read()
+        except Exception:
+            log.exception("kdc101 simulator at %s: producing output failed; dropping the link",
+                          self.address)
+            return False
         if out:
             try:
                 _write_all(send, out)
@@ -161,22 +184,14 @@ class PtyServer(_Server):
 
 
 def _config(args: argparse.Namespace) -> SimConfig:
-    opt = "gelrig sim serve kdc101"
-    return SimConfig(
-        serial_number=args.serial,
-        counts_per_mm=args.counts_per_mm,
-        travel_m=to_si(args.travel, "m", "--travel", opt),
-        start_position_m=to_si(args.start_position, "m", "--start-position", opt),
-        home_offset_m=to_si(args.home_offset, "m", "--home-offset", opt),
-        direction=args.direction,
-    )
+    return config_from_options(SimConfig, args, "gelrig sim serve kdc101")
 
 
 def _clock(spec: str) -> Clock:
     if spec.strip().lower() == "virtual":
         raise ConfigError("--clock", spec, "a served simulator runs real or paced:K (virtual "
                           "time needs an in-process client: kdc101sim://NAME)")
-    return clock_from_spec(spec)
+    return clock_from_spec(spec, waits_only=False)
 
 
 def _parse_tcp(text: str) -> tuple[str, int]:
@@ -211,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m simulators.kdc101.serve",
+    parser = argparse.ArgumentParser(prog="python -m gelrig.simulators.kdc101.serve",
                                      description=__doc__)
     add_arguments(parser)
     return run(parser.parse_args(argv))

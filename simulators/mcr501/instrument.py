@@ -4,26 +4,39 @@ It reuses the driver's codec (drivers/mcr501): design.md allows that because ind
 clients (pyvisa-py, and a raw socket sending literal bytes) drive it in the tests. The state is
 computed lazily from ``clock.now()`` at each request. A trip (torque over range, normal-force
 overload) stops all motion at the moment it happens and is answered, instead of the command,
-to the next request.
+to the next request. A time-limited rotation (``:ROT[dir;rpm;duration]``, ADR 0201) ramps to
+rest when its duration runs out unless the same rotation is asked for again before then; the
+end is applied at its own time when the next request comes, whoever sends it, so a client
+that connects after the one that turned the arm has gone reads where the arm stopped.
+
+A request it cannot take is answered with an ``#ERR`` (10 unknown, 11 bad argument, 13 out of
+range); should handling a request ever fail otherwise, the failure is logged (logger
+``gelrig.simulators.mcr501``) and answered ``#ERR[11;bad argument (internal ...)]``: no line
+ends the server or the client's connection.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections import deque
 
 import numpy as np
 
-from drivers.mcr501.codec import RequestError, Values, decode_request, error_line
-from drivers.mcr501.commands import COMMANDS, MAX_RECORDS, RECORD, STATUS_FLAGS, Command
-from instrument.clock import Clock
-from simulators.mcr501.config import SimConfig
-from simulators.mcr501.faults import FaultPlan
-from simulators.mcr501.physics import ShearCell
+from gelrig.drivers.mcr501.codec import RequestError, Values, decode_request, error_line
+from gelrig.drivers.mcr501.commands import COMMANDS, MAX_RECORDS, RECORD, STATUS_FLAGS, Command
+from gelrig.instrument.core.clock import Clock
+from gelrig.simulators.mcr501.config import SimConfig
+from gelrig.simulators.mcr501.faults import FaultPlan
+from gelrig.simulators.mcr501.physics import ShearCell
+
+log = logging.getLogger("gelrig.simulators.mcr501")
 
 _RPM = 2.0 * math.pi / 60.0
-_MOTION = frozenset({"rotate", "stop", "hold", "set_gap"})
+_MOTION = frozenset({"rotate", "rotate_for", "stop", "hold", "set_gap"})
+#: Longest duration (s) of a time-limited rotation.
+MAX_ROTATION_S = 3600.0
 _THOUSAND = np.array(1e3)
 
 
@@ -49,6 +62,10 @@ class MCR501Simulator:
         self.log: deque[str] = deque(maxlen=200)
         self._reported_trips = 0
         self._fault_flag = False
+        # The time-limited rotation in force: when it ends (inf: none) and its set speed.
+        self.rotation_end = math.inf
+        self._rotation_omega = 0.0
+        self.renewals = 0  # time-limited rotations renewed (diagnostics)
         self._stream_rng = np.random.default_rng(self.config.seed)
         self._read_rng = np.random.default_rng([self.config.seed, 1])
         self._lock = threading.Lock()
@@ -61,6 +78,7 @@ class MCR501Simulator:
             "set_gap": self._set_gap,
             "read_gap": self._read_gap,
             "rotate": self._rotate,
+            "rotate_for": self._rotate_for,
             "stop": self._stop,
             "hold": self._hold,
             "read_angle": self._read_angle,
@@ -81,7 +99,12 @@ class MCR501Simulator:
         with self._lock:
             self.requests += 1
             self.log.append(line.strip())
-            return self.faults.apply(self._handle(line.strip()))
+            try:
+                replies = self._handle(line.strip())
+            except Exception as exc:  # a bug the request found: logged, the line answered
+                log.exception("MCR 501 simulator: handling %r failed", line[:80])
+                replies = [error_line(11, f"bad argument (internal {type(exc).__name__})")]
+            return self.faults.apply(replies)
 
     def _handle(self, line: str) -> list[str]:
         now = self.clock.now()
@@ -91,7 +114,12 @@ class MCR501Simulator:
             return [error_line(exc.code, exc.text)]
         if self.faults.rejects(command.name):
             return [error_line(10, f"unknown command {command.request.key}")]
-        if command.name in _MOTION:
+        self._end_rotation_due(now)
+        if command.name == "rotate_for" and self._renews(values, now):
+            # The same rotation again: only its end moves. Not a breakpoint of the motion
+            # (nothing about it changes), so renewing never changes the physics.
+            self.cell.advance(now, ahead=True)
+        elif command.name in _MOTION:
             self.cell.commit(now)  # a motion command is a breakpoint: integrate exactly to it
         else:  # a reading: served from the look-ahead while the stream runs
             self.cell.advance(now, ahead=True)
@@ -110,6 +138,7 @@ class MCR501Simulator:
         first = trips[self._reported_trips]
         self._reported_trips = len(trips)
         self.mode = "IDLE"
+        self.rotation_end = math.inf  # the trip stopped the motion
         self._fault_flag = True
         return error_line(first.code, f"{first.detail} at t = {first.t:.3f} s; motion stopped")
 
@@ -162,22 +191,68 @@ class MCR501Simulator:
     def _read_gap(self, command: Command, values: Values, now: float) -> list[str]:
         return [command.reply.encode(gap_mm=self.cell.lift.gap(now) * 1e3)]
 
-    def _rotate(self, command: Command, values: Values, now: float) -> list[str]:
+    def _omega(self, values: Values) -> float:
+        """The signed set speed (rad/s) of a rotation request; #ERR 13 beyond the range."""
         rpm = float(values["rpm"])
         if not 0 <= rpm <= self.config.max_rpm:
             raise RequestError(13, f"speed {rpm:g} rpm outside [0, {self.config.max_rpm:g}]")
         sign = 1.0 if values["direction"] == "CW" else -1.0
+        return sign * rpm * _RPM
+
+    def _rotate(self, command: Command, values: Values, now: float) -> list[str]:
+        omega = self._omega(values)
         self._fault_flag = False
-        self.cell.set_speed(now, sign * rpm * _RPM)
-        self.mode = "ROT" if rpm > 0 else "IDLE"
+        self.rotation_end = math.inf  # turns until told otherwise
+        self.cell.set_speed(now, omega)
+        self.mode = "ROT" if omega != 0 else "IDLE"
         return self._ok(command)
 
+    def _rotate_for(self, command: Command, values: Values, now: float) -> list[str]:
+        omega = self._omega(values)
+        duration = float(values["duration_s"])
+        if not 0 < duration <= MAX_ROTATION_S:
+            raise RequestError(13, f"duration {duration:g} s, allowed 0 < duration <= "
+                                   f"{MAX_ROTATION_S:g} s")
+        if self._renews(values, now):
+            self.renewals += 1
+        else:
+            self._fault_flag = False
+            self.cell.set_speed(now, omega)
+            self.mode = "ROT" if omega != 0 else "IDLE"
+        self.rotation_end = now + duration if omega != 0 else math.inf
+        self._rotation_omega = omega
+        return self._ok(command)
+
+    def _renews(self, values: Values, now: float) -> bool:
+        """True if a time-limited rotation request asks for the rotation in force (same
+        direction and speed, its end not yet reached): it only moves the end."""
+        if not (now < self.rotation_end and self.mode == "ROT"):
+            return False
+        try:
+            omega = self._omega(values)
+        except RequestError:
+            return False
+        return omega == self._rotation_omega and omega == self.cell.spin.target
+
+    def _end_rotation_due(self, now: float) -> None:
+        """A time-limited rotation whose end has come ramps to rest from that end on (as a
+        :STOP sent at that moment), however late the next request arrives."""
+        end = self.rotation_end
+        if end > now:
+            return
+        self.rotation_end = math.inf
+        if self.mode == "ROT" and self.cell.spin.target != 0.0:
+            self.cell.set_speed(end, 0.0)
+            self.mode = "IDLE"
+
     def _stop(self, command: Command, values: Values, now: float) -> list[str]:
+        self.rotation_end = math.inf
         self.cell.set_speed(now, 0.0)
         self.mode = "IDLE"
         return self._ok(command)
 
     def _hold(self, command: Command, values: Values, now: float) -> list[str]:
+        self.rotation_end = math.inf
         self.cell.set_speed(now, 0.0)
         self.mode = "HOLD"
         return self._ok(command)

@@ -10,8 +10,8 @@ from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from instrument.errors import Disconnected, InstrumentTimeout
-from simulators.mcr501.instrument import MCR501Simulator
+from gelrig.instrument.core.errors import Disconnected, InstrumentTimeout
+from gelrig.simulators.mcr501.instrument import MCR501Simulator
 
 
 class DirectLink:

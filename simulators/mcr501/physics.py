@@ -4,14 +4,15 @@ Geometry (physics.md section 2, arc treated as a straight line): the upper centr
 ``x = wrap(angle - lower_angle) * arm`` along the arc from the lower centre (positive
 clockwise) and at vertical centre distance ``h = R1 + R2 - (touch_gap - gap)``. The overlap is
 ``delta = R1 + R2 - hypot(h, x)``; the normal force comes from one contact made by
-:func:`instrument.contact_models.make_contact`, stepped through the whole trajectory in order. Each
+:func:`gelrig.instrument.physics.contact_models.make_contact`, stepped through the whole trajectory
+in order. Each
 pass is a fresh contact: where the overlap returns to <= 0 the history is discarded (unless
 ``carry_history``, docs/decisions/0140), so nothing is integrated while the spheres are
 apart. With ``material_vertical`` a second contact gives the F_perp that F_v is resolved
 from (the paper's anisotropy).
 
 Forces are resolved in the frame of the motion (``psi = -s x`` with ``s = sign(omega)``) by
-:func:`instrument.sliding.resolve_forces`, then the lab-frame torque is
+:func:`gelrig.instrument.physics.sliding.resolve_forces`, then the lab-frame torque is
 ``M = s F_h arm + s offset``: positive for a clockwise pass while the contact resists, and
 mirrored for a counter-clockwise pass (docs/decisions/0022). At rest there is no friction
 direction, so the mu term is dropped (``s = 0``; the frame of a clockwise pass is used).
@@ -21,7 +22,7 @@ times, ramp ends, lift arrivals, trips) is cut into steps of at most ``substep_t
 travel and ``max_substep`` of time, anchored at the piece start, plus the stream's sample
 times. How often a client polls therefore never changes the nodes; a reading between grid
 nodes is a non-committing step from the last node. A streaming read integrates LOOKAHEAD
-seconds beyond itself and later reads are served from it (docs/decisions/0090 addendum 3);
+seconds beyond itself and later reads are served from it (docs/decisions/0090);
 a command, a single reading or a stream change first returns to the node before it.
 """
 
@@ -35,18 +36,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from instrument.contact import effective_radius
-from instrument.contact_models import ContactModel, make_contact
-from instrument.sliding import resolve_forces
-from simulators.mcr501.config import SimConfig
-from simulators.mcr501.motion import FloatArray, Lift, Spin
+from gelrig.instrument.physics.contact import effective_radius
+from gelrig.instrument.physics.contact_models import ContactModel, make_contact
+from gelrig.instrument.physics.sliding import resolve_forces
+from gelrig.simulators.mcr501.config import SimConfig
+from gelrig.simulators.mcr501.motion import FloatArray, Lift, Spin
 
 #: Most grid nodes integrated in one block.
 CHUNK = 20_000
 #: Trip codes (as in the command table's error codes).
 TRIP_OVERLOAD = 31
 TRIP_TORQUE = 32
-#: Lab time (s) a streaming read integrates ahead of itself (docs/decisions/0090 addendum 3).
+#: Lab time (s) a streaming read integrates ahead of itself (docs/decisions/0090).
 LOOKAHEAD = 16.0
 
 
@@ -301,8 +302,8 @@ class ShearCell:
         ``ahead`` (a streaming read): integrate up to ``t + LOOKAHEAD`` in one pass and hand
         out the samples up to ``t``; the next reads are then served from what was integrated.
         The nodes are those of the grid either way (fixed by the motion and the stream), so
-        only the blocks the contact is stepped in differ (rounding, docs/decisions/0090
-        addendum 3). Anything else (a command, a single reading, the stream started or
+        only the blocks the contact is stepped in differ (rounding, docs/decisions/0090).
+        Anything else (a command, a single reading, the stream started or
         stopped) first returns to the last node before the look-ahead.
         """
         ahead = ahead and not exact

@@ -11,33 +11,28 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import replace
 
-from instrument.clock import Clock, RealClock, VirtualClock, clock_from_spec
-from instrument.errors import ConfigError
-from instrument.units import to_si
-from simulators.mcr501.config import SimConfig
-from simulators.mcr501.instrument import MCR501Simulator
-from simulators.mcr501.server import SimulatorServer
-from simulators.serve_options import mcr501_arguments as add_arguments
+from gelrig.instrument.core.clock import Clock, RealClock, VirtualClock, clock_from_spec
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.options import config_from_options
+from gelrig.simulators.mcr501.config import SimConfig
+from gelrig.simulators.mcr501.instrument import MCR501Simulator
+from gelrig.simulators.mcr501.server import SimulatorServer
+from gelrig.simulators.serve_options import MCR501_OPTIONS
+from gelrig.simulators.serve_options import mcr501_arguments as add_arguments
 
 __all__ = ["add_arguments", "build", "run"]
 
 
 def build(args: argparse.Namespace) -> tuple[Clock, MCR501Simulator]:
     """The clock and simulator described by the command line (ConfigError on bad values)."""
-    clock = clock_from_spec(args.clock)
+    clock = clock_from_spec(args.clock, waits_only=False)
     if isinstance(clock, VirtualClock):
         raise ConfigError("--clock", args.clock, "allowed: real, paced:K (a served simulator "
                           "needs time that advances by itself)")  # fmt: skip
     if not 0 <= args.port <= 65535:
         raise ConfigError("--port", args.port, "allowed 0..65535")
-    config = replace(
-        SimConfig(),
-        seed=args.seed,
-        lower_angle=to_si(args.lower_angle, "rad", "--lower-angle"),
-        touch_gap=to_si(args.touch_gap, "m", "--touch-gap"),
-    )
+    config = config_from_options(SimConfig, args, "gelrig sim serve mcr501", MCR501_OPTIONS)
     return clock, MCR501Simulator(clock, config)
 
 

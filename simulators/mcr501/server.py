@@ -17,10 +17,10 @@ import threading
 import time
 from typing import Any
 
-from drivers.mcr501.codec import error_line
-from drivers.mcr501.commands import BUSY, TERMINATION
-from simulators.mcr501.instrument import MCR501Simulator
-from simulators.mcr501.lines import TOO_LONG, LineSplitter
+from gelrig.drivers.mcr501.codec import error_line
+from gelrig.drivers.mcr501.commands import BUSY, TERMINATION
+from gelrig.simulators.mcr501.instrument import MCR501Simulator
+from gelrig.simulators.mcr501.lines import TOO_LONG, LineSplitter
 
 #: Longest request line accepted (bytes, without its end); ten times the longest table request.
 MAX_LINE = 256
@@ -31,6 +31,24 @@ HANDOVER = 0.5
 #: the close does not reset the connection before the client has read the error line.
 _LINGER = 0.5
 _RECV = 4096
+
+
+def replies_to(chunk: bytes, splitter: LineSplitter, simulator: MCR501Simulator) -> list[str]:
+    """The reply lines to the request lines ``chunk`` completes (the server loop's work on
+    each received chunk): a line too long, not ASCII or not a request gets its ``#ERR``."""
+    replies: list[str] = []
+    for raw in splitter.feed(chunk):
+        if raw is TOO_LONG:
+            replies.append(error_line(11, f"line too long, at most {MAX_LINE} bytes"))
+            continue
+        try:
+            line = raw.decode("ascii")
+        except UnicodeDecodeError:
+            replies.append(error_line(10, "non-ASCII bytes"))
+            continue
+        if line.strip():
+            replies.extend(simulator.handle(line))
+    return replies
 
 
 class _Handler(socketserver.BaseRequestHandler):
@@ -57,19 +75,7 @@ class _Handler(socketserver.BaseRequestHandler):
             chunk = self.request.recv(_RECV)
             if not chunk:
                 return
-            replies: list[str] = []
-            for raw in splitter.feed(chunk):
-                if raw is TOO_LONG:
-                    replies.append(error_line(11, f"line too long, at most {MAX_LINE} bytes"))
-                    continue
-                try:
-                    line = raw.decode("ascii")
-                except UnicodeDecodeError:
-                    replies.append(error_line(10, "non-ASCII bytes"))
-                    continue
-                if line.strip():
-                    replies.extend(simulator.handle(line))
-            self._send(replies)
+            self._send(replies_to(chunk, splitter, simulator))
 
     def _refuse(self) -> None:
         conn = self.request

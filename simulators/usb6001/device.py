@@ -17,14 +17,15 @@ from __future__ import annotations
 import math
 import re
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from instrument.clock import Clock
-from instrument.contact import FloatArray
-from simulators.usb6001.signals import ConstantSignal, SignalSource
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.simulators.usb6001.signals import ConstantSignal, SignalSource
 
 # DAQmx constants (nidaqmx.constants) used on the wire.
 RSE, DIFF, NRSE, PSEUDO_DIFF, DEFAULT_TERMINAL = 10083, 10106, 10078, 12529, -1
@@ -111,6 +112,12 @@ ERROR_TEXT = {
 }
 
 
+class InvalidRequest(ValueError):
+    """A request whose fields cannot be converted (a malformed waveform, say): the gRPC
+    server answers INVALID_ARGUMENT, as NI's grpc-device server does for a value it cannot
+    convert, before the device sees it."""
+
+
 class DaqmxError(Exception):
     """A DAQmx error of the simulated device: code, message, samples read before it."""
 
@@ -136,11 +143,55 @@ class DeviceSpec:
     range_volts: float = 10.0
     clip_volts: float = 10.5
     max_aggregate_rate: float = 20_000.0
+    #: how its sample clock and its USB transfers meet the host's clock (default: ideal)
+    timing: DaqTiming = field(default_factory=lambda: DaqTiming())
 
     @property
     def lsb(self) -> float:
         """One ADC code (V): the +-10 V span over 2^bits codes."""
         return 2.0 * self.range_volts / 2**self.resolution_bits
+
+
+@dataclass(frozen=True)
+class DaqTiming:
+    """How the simulated device's samples meet the host's clock (issue 24).
+
+    ``drift_ppm``: its sample clock runs this much fast (+) or slow (-) against the host's
+    (the USB-6001's timebase accuracy is +-100 ppm: UNVERIFIED, NI spec sheet); sample k is
+    converted at ``t0 + k / (rate (1 + drift))``. ``transfer``: samples per USB transfer; a
+    transfer reaches the host ``latency`` s after its last sample's conversion, plus a jitter
+    uniform in [0, ``jitter``] s per transfer (seeded by ``seed``; transfers stay in order).
+    The default is the ideal device (no drift, every sample at once). :data:`DOCUMENTED` holds
+    the values the documents suggest.
+    """
+
+    drift_ppm: float = 0.0
+    latency: float = 0.0
+    jitter: float = 0.0
+    transfer: int = 1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not (abs(self.drift_ppm) < 1e4 and self.latency >= 0 and self.jitter >= 0
+                and self.transfer >= 1):
+            raise ValueError(f"impossible DAQ timing {self}")
+
+    def jitter_of(self, j: int) -> float:
+        """The extra latency (s) of transfer ``j``: a fixed pseudo-random draw."""
+        if self.jitter <= 0:
+            return 0.0
+        h = (j * 0x9E3779B97F4A7C15 + self.seed * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+        h ^= h >> 31
+        h = (h * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+        h ^= h >> 29
+        return self.jitter * (h / 2.0**64)
+
+
+#: The USB-6001's timing as documented or assumed: 100 ppm timebase accuracy (NI spec sheet,
+#: UNVERIFIED), USB transfers of 32 samples (UNVERIFIED) arriving 1 ms after the last
+#: sample (a USB full-speed frame; UNVERIFIED) with up to 2 ms of host-side jitter
+#: (UNVERIFIED).
+DOCUMENTED = DaqTiming(drift_ppm=100.0, latency=1e-3, jitter=2e-3, transfer=32)
 
 
 def default_buffer_size(rate: float) -> int:
@@ -201,13 +252,52 @@ class SimTask:
     hist_buf: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
     hist_off: int = 0
     on_demand_next: float = -math.inf
+    #: a start trigger: maps the start time to the first sample's (inf: no edge yet), set by
+    #: gelrig.simulators.usb6001.triggers (docs/decisions/0290)
+    start_gate: Callable[[float], float] | None = None
 
-    def acquired(self, now: float) -> int:
-        """Samples per channel acquired by ``now`` (sample k exists at t0 + k / rate)."""
+    #: how samples meet the host's clock (the device's :class:`DaqTiming`)
+    timing: DaqTiming = field(default_factory=lambda: DaqTiming())
+
+    @property
+    def true_rate(self) -> float:
+        """The rate the sample clock really runs at, on the host's clock (its drift)."""
+        return self.rate * (1.0 + 1e-6 * self.timing.drift_ppm)
+
+    def converted(self, now: float) -> int:
+        """Samples converted by ``now`` (sample k at t0 + k / true_rate)."""
         if not self.running or not self.timing_set or now < self.t0:
             return 0
-        n = math.floor((now - self.t0) * self.rate + 1e-6) + 1
+        n = math.floor((now - self.t0) * self.true_rate + 1e-6) + 1
         return min(n, self.samps_per_chan) if self.sample_mode == FINITE else n
+
+    def delivered_at(self, k: int) -> float:
+        """When sample ``k`` reaches the host: its transfer's last conversion, plus latency
+        and jitter (the last transfer of a finite task may be short)."""
+        timing = self.timing
+        j = k // timing.transfer
+        last = (j + 1) * timing.transfer - 1
+        if self.sample_mode == FINITE:
+            last = min(last, self.samps_per_chan - 1)
+        base = self.t0 + last / self.true_rate + timing.latency
+        if timing.jitter <= 0:
+            return base
+        # in order: a transfer arrives no earlier than the one before it
+        prev = self.t0 + (last - timing.transfer) / self.true_rate + timing.latency
+        return max(base + timing.jitter_of(j), prev + timing.jitter_of(j - 1) if j else base)
+
+    def acquired(self, now: float) -> int:
+        """Samples per channel that have reached the host's buffer by ``now``."""
+        n = self.converted(now)
+        timing = self.timing
+        if timing.transfer == 1 and timing.latency == 0 and timing.jitter == 0:
+            return n
+        n = self.converted(now - timing.latency)
+        if not (self.sample_mode == FINITE and n >= self.samps_per_chan):
+            n = n // timing.transfer * timing.transfer  # whole transfers only
+        while n > 0 and self.delivered_at(n - 1) > now:
+            n = (n - 1) // timing.transfer * timing.transfer  # back one transfer
+        return n
 
     def done(self, now: float) -> bool:
         """DAQmx Is Task Done: not running, on demand, or a finite acquisition complete."""
@@ -286,7 +376,8 @@ class SimulatedUsb6001:
             task = self.task(task_name)
             if task.running:
                 raise DaqmxError(CAN_NOT_PERFORM_OP_WHILE_TASK_RUNNING)
-            terminal = DIFF if terminal == DEFAULT_TERMINAL else terminal
+            default = terminal == DEFAULT_TERMINAL
+            terminal = RSE if default else terminal
             if terminal not in (RSE, DIFF):
                 raise DaqmxError(INVALID_ATTRIBUTE_VALUE,
                                  f"Property: AI.TermCfg\nRequested Value: {terminal}\n"
@@ -306,14 +397,10 @@ class SimulatedUsb6001:
             names = [p.strip() for p in assigned.split(",")] if assigned else []
             if names and len(names) != len(physicals):
                 names = [f"{assigned}{i}" for i in range(len(physicals))]
-            new = [AIChannel(names[i] if names else full, short, terminal, min_val, max_val)
+            new = [AIChannel(names[i] if names else full, short,
+                             default_terminal(short) if default else terminal, min_val, max_val)
                    for i, (full, short) in enumerate(physicals)]
-            taken = {c.name.lower() for c in task.channels}
-            for chan in new:
-                if chan.name.lower() in taken:
-                    raise DaqmxError(CHAN_ALREADY_IN_TASK, f"Channel Name: {chan.name}")
-                taken.add(chan.name.lower())
-            task.channels.extend(new)
+            add_named(task.channels, new)
 
     def check_device(self, name: str) -> None:
         """DAQmx device names are not case sensitive: "dev1" is "Dev1"."""
@@ -418,6 +505,9 @@ class SimulatedUsb6001:
         task.gen_pos, task.hist_start, task.hist_off = 0, 0, 0
         task.hist = task.hist_buf = np.empty((n_chan, 0))
         task.t0 = self.clock.now()
+        if task.start_gate is not None:
+            task.t0 = task.start_gate(task.t0)
+        task.timing = self.spec.timing
         task.running = True
 
     def _buffer_size(self, task: SimTask) -> int:
@@ -462,7 +552,7 @@ class SimulatedUsb6001:
             if task.done(now):
                 return
             if task.sample_mode == FINITE:
-                target = task.t0 + (task.samps_per_chan - 1) / task.rate
+                target = task.delivered_at(task.samps_per_chan - 1)
             else:
                 target = math.inf
             limit = math.inf if timeout < 0 else now + timeout
@@ -559,7 +649,7 @@ class SimulatedUsb6001:
                                  f"Samples overwritten before sample {acquired - task.buffer_size}"
                                  f"; read from sample {start}\nBuffer size: {task.buffer_size} "
                                  f"samples per channel\nTask Name: {task.name}", samps_read=0)
-            deadline = task.t0 + (start + n - 1) / task.rate
+            deadline = task.delivered_at(start + n - 1)
             short = acquired < start + n
         if short:
             limit = math.inf if timeout < 0 else now + timeout
@@ -596,7 +686,7 @@ class SimulatedUsb6001:
         if end > task.gen_pos:
             keep = max(task.buffer_size, n)
             first = max(task.gen_pos, end - keep)
-            dt = 1.0 / task.rate
+            dt = 1.0 / task.true_rate
             block = self._generate(task, task.t0 + first * dt, dt, end - first)
             _keep_history(task, block, first, keep)
             task.gen_pos = end
@@ -618,6 +708,22 @@ class SimulatedUsb6001:
             np.round(v / lsb, out=row)
             row *= lsb
         return out
+
+
+def add_named(channels: list[Any], new: list[Any]) -> None:
+    """Append ``new`` channels to a task's; a name already there (any case): -200489."""
+    taken = {c.name.lower() for c in channels}
+    for chan in new:
+        if chan.name.lower() in taken:
+            raise DaqmxError(CHAN_ALREADY_IN_TASK, f"Channel Name: {chan.name}")
+        taken.add(chan.name.lower())
+    channels.extend(new)
+
+
+def default_terminal(physical: str) -> int:
+    """DAQmx's terminal configuration for -1 (Default) on an 8-channel USB-600x: differential
+    for ai0..3, RSE for ai4..7 (NI-DAQmx Help, "Default Input/Output Terminal Configurations")."""
+    return DIFF if int(physical[2:]) < 4 else RSE
 
 
 def _keep_history(task: SimTask, block: FloatArray, first: int, keep: int) -> None:

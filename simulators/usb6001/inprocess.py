@@ -16,8 +16,8 @@ from typing import Any, NamedTuple, NoReturn
 
 import grpc
 
-from simulators.usb6001.device import SimulatedUsb6001
-from simulators.usb6001.servicer import Usb6001Servicer
+from gelrig.simulators.usb6001.device import SimulatedUsb6001
+from gelrig.simulators.usb6001.servicer import Usb6001Servicer
 
 
 class _Metadatum(NamedTuple):

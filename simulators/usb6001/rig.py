@@ -3,16 +3,20 @@ the simulated USB-6001's input, all on one shared clock."""
 
 from __future__ import annotations
 
-from instrument.clock import Clock
-from instrument.contact import Material
-from instrument.loadcell import LoadCellChain
-from instrument.paper import PLATES, R_COMPRESSION
-from instrument.plate_contact import PlatePosition, PlatePositions, PlateSphereContact
-from simulators.usb6001.device import DeviceSpec, SimulatedUsb6001
-from simulators.usb6001.signals import DEFAULT_NOISE_RMS, LoadCellSignal
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.clock import Clock
+from gelrig.instrument.physics.contact import Material
+from gelrig.instrument.physics.paper import PLATES, R_COMPRESSION
+from gelrig.instrument.physics.plate_contact import (
+    PlatePosition,
+    PlatePositions,
+    PlateSphereContact,
+)
+from gelrig.simulators.usb6001.config import DEFAULT_NOISE_RMS, SIM_OFFSET
+from gelrig.simulators.usb6001.device import DeviceSpec, SimulatedUsb6001
+from gelrig.simulators.usb6001.signals import LoadCellSignal
 
-#: Conditioner offset of the simulated rig (V): nonzero so that a missing tare shows.
-SIM_OFFSET = 0.0123
+__all__ = ["PLATES", "SIM_OFFSET", "compression_daq"]
 
 
 def compression_daq(
@@ -35,7 +39,8 @@ def compression_daq(
     """A simulated USB-6001 whose ``channel`` sees the load cell on the plate-sphere contact.
 
     ``plate_position(t)`` (m) is the stage's plate position on ``clock``; ``first_touch`` (m)
-    the stage position where the plate meets the sphere's top (see instrument.plate_contact for
+    the stage position where the plate meets the sphere's top (see
+    gelrig.instrument.physics.plate_contact for
     the sign convention). ``chain`` is the simulated rig's true chain (default: the nominal
     chain with a :data:`SIM_OFFSET` conditioner offset). ``unloading``: the contact model on
     unloading, ``"cutoff"`` (the paper's) or ``"mdr"`` (physics.md 1b).

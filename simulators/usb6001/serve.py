@@ -10,50 +10,42 @@ simulator supplies the plate position instead.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import threading
 
-from instrument.clock import clock_from_spec
-from instrument.errors import ConfigError
-from instrument.loadcell import LoadCellChain
-from instrument.paper import DEPTH_HOLD
-from instrument.units import to_si
-from simulators.serve_options import USB6001_PORT as DEFAULT_PORT
-from simulators.serve_options import usb6001_arguments as add_arguments
-from simulators.usb6001.rig import SIM_OFFSET, compression_daq
-from simulators.usb6001.server import start_server
-from simulators.usb6001.signals import DEFAULT_NOISE_RMS
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.clock import clock_from_spec
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.options import config_from_options
+from gelrig.simulators.serve_options import USB6001_PORT as DEFAULT_PORT
+from gelrig.simulators.serve_options import usb6001_arguments as add_arguments
+from gelrig.simulators.usb6001.config import Standalone
+from gelrig.simulators.usb6001.device import DOCUMENTED, DaqTiming, DeviceSpec
+from gelrig.simulators.usb6001.rig import compression_daq
+from gelrig.simulators.usb6001.server import start_server
 
 __all__ = ["DEFAULT_PORT", "add_arguments", "run"]
 
 
-def _or_default(text: str | None, default: float, unit: str, field: str) -> float:
-    """An option's value in SI; ``default`` when it was not given."""
-    return default if text is None else to_si(text, unit, field)
-
-
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     """Serve until interrupted (or ``stop`` is set); print where it listens."""
-    clock = clock_from_spec(args.clock)
-    first_touch = to_si(args.first_touch, "m", "--first-touch")
-    start = to_si(args.plate_start, "m", "--plate-start")
-    speed = to_si(args.ramp_speed, "m/s", "--ramp-speed")
-    depth = _or_default(args.depth, DEPTH_HOLD, "m", "--depth")
-    noise = _or_default(args.noise, DEFAULT_NOISE_RMS, "V", "--noise")
-    offset = _or_default(args.offset, SIM_OFFSET, "V", "--offset")
-    if speed < 0:
-        raise ConfigError("--ramp-speed", args.ramp_speed, "must be >= 0 m/s")
+    clock = clock_from_spec(args.clock, waits_only=False)
+    sample = config_from_options(Standalone, args, "gelrig sim serve usb6001")
     if not 0 <= args.port <= 65535:
         raise ConfigError("--port", args.port, "allowed [0, 65535]")
     t0 = clock.now()
-    end = first_touch + depth
+    start, speed = sample.plate_start, sample.ramp_speed
+    end = sample.first_touch + sample.depth
 
     def plate(t: float) -> float:
         return start if speed == 0 else min(start + speed * (t - t0), max(end, start))
 
     device = compression_daq(
-        clock, plate, first_touch, chain=LoadCellChain(offset=offset),
-        noise_rms=noise, seed=args.seed, buffer_size=args.buffer_size,
+        clock, plate, sample.first_touch, chain=LoadCellChain(offset=sample.offset),
+        noise_rms=sample.noise, seed=sample.seed, buffer_size=sample.buffer_size,
+        spec=DeviceSpec(timing=dataclasses.replace(DOCUMENTED, seed=sample.seed)
+                        if sample.timing == "documented" else DaqTiming()),
     )
     try:
         server = start_server(device, args.host, args.port)

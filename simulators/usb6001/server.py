@@ -8,11 +8,10 @@ from dataclasses import dataclass
 import grpc
 from nidaqmx._stubs import nidaqmx_pb2_grpc as pb_grpc
 
-from simulators.usb6001.device import SimulatedUsb6001
-from simulators.usb6001.servicer import Usb6001Servicer
+from gelrig.simulators.usb6001.device import SimulatedUsb6001
+from gelrig.simulators.usb6001.servicer import MAX_MESSAGE_BYTES, Usb6001Servicer
 
-#: Largest gRPC message either side accepts (a 1 kHz read of 1000 s is 8 MB).
-MAX_MESSAGE_BYTES = 64 * 1024 * 1024
+__all__ = ["MAX_MESSAGE_BYTES", "RunningServer", "start_server"]
 _OPTIONS = [
     ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES),
     ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),

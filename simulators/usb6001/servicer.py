@@ -18,12 +18,19 @@ with a session name that exists attaches to it (AUTO, ATTACH_TO_EXISTING; the re
 ``new_session_initialized = False``) or fails with ALREADY_EXISTS (INITIALIZE_NEW); attaching
 to a name that does not exist fails with NOT_FOUND. The status codes are those of NI's
 session-management examples; the real server's are UNVERIFIED.
+
+A malformed request never ends the server: one the server cannot decode gets gRPC's own
+INTERNAL status; one whose values the device refuses gets its DAQmx error; a read asking for
+more values than one reply message can carry (:data:`MAX_READ_VALUES`) is refused with
+-200077 before anything is allocated; and should a handler fail otherwise, the failure is
+logged (logger ``gelrig.simulators.usb6001``) and answered with status INTERNAL naming it.
 """
 
 # ruff: noqa: N802  (RPC method names are fixed by the NiDAQmx gRPC service)
 from __future__ import annotations
 
 import functools
+import logging
 import re
 import threading
 import time
@@ -42,7 +49,8 @@ from session_pb2 import (
     Session,
 )
 
-from simulators.usb6001.device import (
+from gelrig.simulators.usb6001 import io_properties
+from gelrig.simulators.usb6001.device import (
     ATTR_NOT_SUPPORTED,
     ATTRIBUTE_NOT_SUPPORTED_IN_TASK_CONTEXT,
     CURRENT_READ_POSITION,
@@ -61,13 +69,21 @@ from simulators.usb6001.device import (
     OVERWRITE_UNREAD,
     READ_BUFFER_TOO_SMALL,
     REFERENCE_TRIGGER,
-    SAMPLES_NOT_YET_AVAILABLE,
     VOLTS,
     AIChannel,
     DaqmxError,
+    InvalidRequest,
     SimTask,
     SimulatedUsb6001,
 )
+from gelrig.simulators.usb6001.io_service import IoRpcs
+
+log = logging.getLogger("gelrig.simulators.usb6001")
+
+#: Largest gRPC message either side accepts (a 1 kHz read of 1000 s is 8 MB).
+MAX_MESSAGE_BYTES = 64 * 1024 * 1024
+#: Most values (samples x channels) one read answers: what fits one reply message.
+MAX_READ_VALUES = (MAX_MESSAGE_BYTES - 1024 * 1024) // 8
 
 #: NI-DAQmx version the simulated server reports (major, minor, update).
 DRIVER_VERSION = (23, 8, 0)
@@ -82,7 +98,7 @@ BUS_USB = 12586  # nidaqmx.constants.BusType.USB
 PRODUCT_CATEGORY_USB_DAQ = 14646  # ProductCategory.USBDAQ (UNVERIFIED for the 6001)
 RESOLUTION_BITS = 10109
 USB_BULK = 12590
-ACQUIRED_INTO_BUFFER = 1
+ACQUIRED_INTO_BUFFER, TRANSFERRED_FROM_BUFFER = 1, 2
 ONBOARD_CLOCK = "OnboardClock"
 #: Real time between checks of an every-N-samples event stream (s).
 EVENT_POLL = 0.005
@@ -172,7 +188,7 @@ class Prop:
     reset: Any = None
 
 
-class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
+class Usb6001Servicer(IoRpcs, pb_grpc.NiDAQmxServicer):
     """NiDAQmx gRPC service answering for one :class:`SimulatedUsb6001`."""
 
     def __init__(self, device: SimulatedUsb6001):
@@ -187,6 +203,14 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
             return fn()
         except DaqmxError as fault:
             _abort(context, fault)
+        except InvalidRequest as exc:
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+            raise AssertionError("unreachable: context.abort raises") from exc
+        except Exception as exc:  # a request the device code could not take: say so
+            log.exception("simulated USB-6001: a request failed")
+            context.abort(grpc.StatusCode.INTERNAL, f"the simulated USB-6001 could not "
+                          f"handle the request: {type(exc).__name__}: {exc}")
+            raise AssertionError("unreachable: context.abort raises") from exc
 
     def _task(self, session: Session) -> SimTask:
         return self.device.task(session.name)
@@ -373,6 +397,7 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
             ("Read", 0x1826): Prop("Read.AutoStart", "Bool", lambda r: task(r).auto_start,
                                    set_field("auto_start", bool), True),
         }
+        io_properties.extend(self, table)  # AO, DIO, counter, triggers (docs/decisions/0290)
         return table
 
     def _attribute(self, rpc: str, request: Any, context: Context) -> Any:
@@ -416,9 +441,8 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
     @staticmethod
     def _channels(task: SimTask, names: str) -> list[AIChannel]:
         """The task's channels named in ``names`` (all if empty); names are case-insensitive."""
-        wanted = [n.strip().lower() for n in names.split(",") if n.strip()]
-        chans = [c for c in task.channels if c.name.lower() in wanted] if wanted else task.channels
-        if not chans or (wanted and len(chans) != len(wanted)):
+        chans = io_properties.select(task.channels, names)  # "Dev1/ai0:7" too
+        if not chans:
             raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Channel Name: {names}")
         return chans
 
@@ -439,6 +463,7 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
         def reset() -> Any:
             self.device.check_device(request.device_name)
             self.device.reset()
+            self.io.reset()
             return pb.ResetDeviceResponse()
 
         return self._run(context, reset)
@@ -471,23 +496,38 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
 
     def ClearTask(self, request: Any, context: Context) -> Any:
         self._run(context, lambda: self.device.clear_task(request.task.name))
+        self.io.clear(request.task.name)
         return pb.ClearTaskResponse()
 
     def StartTask(self, request: Any, context: Context) -> Any:
-        self._run(context, lambda: self.device.start(request.task.name))
+        self._run(context, lambda: self._start(request.task.name))
         return pb.StartTaskResponse()
 
     def StopTask(self, request: Any, context: Context) -> Any:
-        self._run(context, lambda: self.device.stop(request.task.name))
+        self._run(context, lambda: self._stop(request.task.name))
         return pb.StopTaskResponse()
+
+    def _start(self, name: str) -> None:
+        """Start an AI task on the device, any other on its io side."""
+        if self.io.get(name) is not None:
+            self.io.start(name)
+        else:
+            self.device.start(name)
+            self.io.ai_started(self.device.task(name).t0)  # the AO may start with it
+
+    def _stop(self, name: str) -> None:
+        if self.io.get(name) is not None:
+            self.io.stop(name)
+        self.flush_log(name)
+        self.device.stop(name)
 
     def TaskControl(self, request: Any, context: Context) -> Any:
         def control() -> Any:
             action = request.action_raw
             if action == _TASK_START:
-                self.device.start(request.task.name)
+                self._start(request.task.name)
             elif action in (_TASK_STOP, _TASK_ABORT):
-                self.device.stop(request.task.name)
+                self._stop(request.task.name)
             else:
                 self.device.task(request.task.name)  # verify/commit/reserve: validity only
             return pb.TaskControlResponse()
@@ -495,12 +535,18 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
         return self._run(context, control)
 
     def IsTaskDone(self, request: Any, context: Context) -> Any:
+        name = request.task.name
         return self._run(context, lambda: pb.IsTaskDoneResponse(
-            is_task_done=self.device.is_done(request.task.name)))
+            is_task_done=self.io.is_done(name) if self.io.get(name) is not None
+            else self.device.is_done(name)))
 
     def WaitUntilTaskDone(self, request: Any, context: Context) -> Any:
         def wait() -> Any:
+            if self.io.get(request.task.name) is not None:
+                self.io.wait_until_done(request.task.name, request.time_to_wait)
+                return pb.WaitUntilTaskDoneResponse()
             self.device.wait_until_done(request.task.name, request.time_to_wait)
+            self.flush_log(request.task.name)
             return pb.WaitUntilTaskDoneResponse()
 
         return self._run(context, wait)
@@ -511,6 +557,7 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
         def create() -> Any:
             if request.custom_scale_name:
                 raise DaqmxError(INVALID_ATTRIBUTE_VALUE, "Custom scales are not simulated.")
+            self.io.check_ai(request.task.name)
             self.device.add_voltage_channel(
                 request.task.name, request.physical_channel, request.name_to_assign_to_channel,
                 request.terminal_config_raw, request.min_val, request.max_val, request.units_raw,
@@ -522,6 +569,8 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
     def CfgSampClkTiming(self, request: Any, context: Context) -> Any:
         def cfg() -> Any:
             self.properties[("Timing", 0x1852)].set(request, request.source)  # type: ignore[misc]
+            if self.io_timing(request):
+                return pb.CfgSampClkTimingResponse()
             if request.active_edge_raw not in (RISING, 0):
                 _choice("SampClk.ActiveEdge", request.active_edge_raw, {"Rising": RISING})
             self.device.cfg_timing(request.task.name, request.rate, request.sample_mode_raw,
@@ -536,6 +585,10 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
         def read() -> Any:
             task = self._task(request.task)
             n = request.num_samps_per_chan
+            if n * max(1, len(task.channels)) > MAX_READ_VALUES:
+                raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Samples per channel to read: {n}"
+                                 f"\nThe simulated server answers at most {MAX_READ_VALUES} "
+                                 "values per read (one gRPC message)", samps_read=0)
             if request.fill_mode_raw not in (GROUP_BY_CHANNEL, GROUP_BY_SCAN_NUMBER):
                 raise DaqmxError(INVALID_ATTRIBUTE_VALUE, f"Fill mode: {request.fill_mode_raw}",
                                  samps_read=0)
@@ -543,13 +596,7 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
                 raise DaqmxError(READ_BUFFER_TOO_SMALL,
                                  f"Required size: {n * len(task.channels)}\n"
                                  f"Buffer size: {request.array_size_in_samps}", samps_read=0)
-            try:
-                data, got = self.device.read(task.name, n, request.timeout)
-                status = 0
-            except DaqmxError as fault:
-                if fault.code != SAMPLES_NOT_YET_AVAILABLE or fault.data is None:
-                    raise
-                data, got, status = fault.data, fault.samps_read or 0, fault.code
+            data, got, status = self.read_ai(task.name, n, request.timeout)
             flat = data.T.ravel() if request.fill_mode_raw == GROUP_BY_SCAN_NUMBER else data.ravel()
             return pb.ReadAnalogF64Response(
                 status=status, read_array=flat.tolist(), samps_per_chan_read=got)
@@ -581,7 +628,9 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
 
         def register() -> int:
             self.device.task(name)
-            if kind != ACQUIRED_INTO_BUFFER:
+            if self.io_event_progress(name, kind) is not None:
+                pass  # an AO task's transferred-from-buffer event (io_service)
+            elif kind != ACQUIRED_INTO_BUFFER:
                 raise DaqmxError(EVERY_N_SAMPS_TRANSFERRED_EVENT_NOT_SUPPORTED,
                                  f"Task Name: {name}\nEvent type: {kind}")
             if n < 1:
@@ -609,7 +658,16 @@ class Usb6001Servicer(pb_grpc.NiDAQmxServicer):
                     task = self.device.task(name)
                 except DaqmxError:
                     return
-                if not task.running or not task.timing_set:
+                progress = self.io_event_progress(name, TRANSFERRED_FROM_BUFFER)
+                if progress is not None:  # an AO task: samples generated since its start
+                    if progress[0] != t0:
+                        sent, t0 = 0, progress[0]
+                    elif progress[1] >= (sent + 1) * n:
+                        sent += 1
+                        yield pb.RegisterEveryNSamplesEventResponse(
+                            every_n_samples_event_type_raw=TRANSFERRED_FROM_BUFFER, n_samples=n)
+                        continue
+                elif not task.running or not task.timing_set:
                     sent, t0 = 0, None
                 elif t0 != task.t0:
                     sent, t0 = 0, task.t0

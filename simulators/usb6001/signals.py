@@ -14,12 +14,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy.signal import lfilter
 
-from instrument.contact import FloatArray
-from instrument.loadcell import LoadCellChain
-from instrument.plate_contact import PlateSphereContact
-
-#: Default rms noise at the ADC input (V): about one 14-bit code over +-10 V (UNVERIFIED).
-DEFAULT_NOISE_RMS = 1e-3
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.physics.contact import FloatArray
+from gelrig.instrument.physics.plate_contact import PlateSphereContact
+from gelrig.simulators.usb6001.config import DEFAULT_NOISE_RMS
 
 
 @runtime_checkable

@@ -5,7 +5,7 @@ from typing import Any
 
 import pytest
 
-from drivers.mcr501 import open_resource_manager
+from gelrig.drivers.mcr501 import open_resource_manager
 
 
 @pytest.fixture(scope="module")

@@ -7,10 +7,11 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.mcr501 import MCR501
-from instrument.clock import VirtualClock
-from instrument.rheometer import RheometerConfig
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from gelrig.drivers.mcr501 import MCR501
+from gelrig.instrument.contracts.bounded_motion import keep_moving
+from gelrig.instrument.contracts.rheometer import RheometerConfig
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 
 
 @dataclass
@@ -19,6 +20,11 @@ class Rig:
     sim: MCR501Simulator
     server: SimulatorServer
     drv: MCR501
+
+    def turn(self, seconds: float) -> None:
+        """Let ``seconds`` pass while the arm turns, renewing the rotation as gelrig's waits do
+        (ADR 0201): without renewals the instrument stops it after 1.5 s."""
+        keep_moving(self.clock, self.drv, seconds, self.drv.config.motion_bound)
 
     def arm_stopped(self) -> bool:
         """The simulated motor has a zero set speed and has come to rest."""

@@ -9,13 +9,13 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from drivers.kdc101 import KDC101
-from drivers.kdc101.apt import MsgId
-from instrument.clock import RealClock
-from instrument.errors import Disconnected, FramingError, InstrumentTimeout
-from instrument.stage import StageConfig
-from simulators.kdc101 import KDC101Simulator
-from simulators.kdc101.serve import TcpServer
+from gelrig.drivers.kdc101 import KDC101
+from gelrig.drivers.kdc101.apt import MsgId
+from gelrig.instrument.contracts.stage import StageConfig
+from gelrig.instrument.core.clock import RealClock
+from gelrig.instrument.core.errors import Disconnected, FramingError, InstrumentTimeout
+from gelrig.simulators.kdc101 import KDC101Simulator
+from gelrig.simulators.kdc101.serve import TcpServer
 from tests.faultproxy import FaultProxy, failing
 from tests.served import Served, serve
 

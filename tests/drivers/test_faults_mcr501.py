@@ -10,12 +10,12 @@ from typing import Any
 
 import pytest
 
-from drivers.mcr501 import MCR501
-from drivers.mcr501.driver import STOP_ACK_TIMEOUT_S
-from instrument.clock import RealClock, VirtualClock
-from instrument.errors import Disconnected, FramingError, InstrumentTimeout
-from instrument.rheometer import RheometerConfig
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from gelrig.drivers.mcr501 import MCR501
+from gelrig.drivers.mcr501.driver import STOP_ACK_TIMEOUT_S
+from gelrig.instrument.contracts.rheometer import RheometerConfig
+from gelrig.instrument.core.clock import RealClock, VirtualClock
+from gelrig.instrument.core.errors import Disconnected, FramingError, InstrumentTimeout
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 from tests.faultproxy import FaultProxy, failing
 from tests.served import Served, serve
 

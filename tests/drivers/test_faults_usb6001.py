@@ -18,17 +18,17 @@ from nidaqmx._stubs import nidaqmx_pb2 as pb
 from nidaqmx._stubs import nidaqmx_pb2_grpc as pb_grpc
 from nidaqmx.constants import AcquisitionType
 
-from drivers.usb6001 import Usb6001ForceSensor
-from drivers.usb6001.config import Usb6001Config
-from drivers.usb6001.deadline import DeadlineInterceptor, with_deadlines
-from instrument.clock import RealClock
-from instrument.errors import (
+from gelrig.drivers.usb6001 import Usb6001ForceSensor
+from gelrig.drivers.usb6001.config import Usb6001Config
+from gelrig.drivers.usb6001.deadline import DeadlineInterceptor, with_deadlines
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.clock import RealClock
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
     InstrumentTimeout,
 )
-from instrument.loadcell import LoadCellChain
 from tests.faultproxy import FaultProxy, failing
 from tests.served import ROOT, Served, serve
 
@@ -171,10 +171,10 @@ def test_a_delay_shorter_than_the_deadline_is_only_slow(server: Served) -> None:
 # ---- a session left by a killed process (ADR 0061) ----------------------------------------
 _HOLDER = """
 import sys, time
-from drivers.usb6001 import Usb6001ForceSensor
-from drivers.usb6001.config import Usb6001Config
-from instrument.clock import RealClock
-from instrument.loadcell import LoadCellChain
+from gelrig.drivers.usb6001 import Usb6001ForceSensor
+from gelrig.drivers.usb6001.config import Usb6001Config
+from gelrig.instrument.core.clock import RealClock
+from gelrig.instrument.contracts.loadcell import LoadCellChain
 sensor = Usb6001ForceSensor(sys.argv[1], Usb6001Config(), LoadCellChain(), RealClock()).open()
 sensor.start(1000.0)
 sensor.read_block(10)

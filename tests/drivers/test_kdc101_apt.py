@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivers.kdc101 import payloads as pl
-from drivers.kdc101.apt import (
+from gelrig.drivers.kdc101 import payloads as pl
+from gelrig.drivers.kdc101.apt import (
     CONTROLLER,
     FORMS,
     HOST,
@@ -24,7 +24,7 @@ from drivers.kdc101.apt import (
     decode,
     encode,
 )
-from instrument.errors import FramingError
+from gelrig.instrument.core.errors import FramingError
 
 
 def test_known_frames_match_the_protocol_document() -> None:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from instrument.errors import ConfigError, LimitError
-from instrument.stage import StageConfig
+from gelrig.instrument.contracts.stage import StageConfig
+from gelrig.instrument.core.errors import ConfigError, LimitError
 
 
 def test_defaults_are_the_protocol_documents_factors() -> None:

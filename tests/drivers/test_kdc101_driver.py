@@ -7,13 +7,22 @@ import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+import numpy as np
 import pytest
 
-from drivers.kdc101 import KDC101
-from instrument.clock import VirtualClock
-from instrument.errors import LimitError
-from instrument.stage import Stage, StageConfig
-from simulators.kdc101 import KDC101Simulator, SimConfig, register, trapezoid_duration, unregister
+from gelrig.drivers.kdc101 import KDC101
+from gelrig.drivers.kdc101.apt import CHANNEL, MsgId, command, encode
+from gelrig.drivers.kdc101.payloads import Directions
+from gelrig.instrument.contracts.stage import FORWARD_IS_NEGATIVE, Stage, StageConfig
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import LimitError
+from gelrig.simulators.kdc101 import (
+    KDC101Simulator,
+    SimConfig,
+    register,
+    trapezoid_duration,
+    unregister,
+)
 
 CPM = 34554.96
 _names = itertools.count()
@@ -37,6 +46,15 @@ def rig() -> Iterator[Rig]:
     yield Rig(clock, sim, url, stage)
     stage.close()
     unregister(name)
+
+
+def run_for(rig: Rig, seconds: float, step: float = 0.1) -> None:
+    """Let ``seconds`` of clock time pass while gelrig is alive: a call every ``step`` renews
+    a segmented move, as every wait of gelrig's does (ADR 0201)."""
+    end = rig.clock.now() + seconds
+    while rig.clock.now() < end:
+        rig.clock.sleep_until(min(rig.clock.now() + step, end))
+        rig.stage.keep_alive()
 
 
 def test_it_is_a_stage(rig: Rig) -> None:
@@ -128,14 +146,14 @@ def test_non_blocking_move_reports_moving_with_direction_bits(rig: Rig) -> None:
 def test_stop_mid_move_immediate_and_profiled(rig: Rig) -> None:
     rig.stage.home()
     rig.stage.move_to(15e-3, wait=False)
-    rig.clock.advance(2.0)
+    run_for(rig, 2.0)
     where = rig.stage.position()
     rig.stage.stop(immediate=True)
     assert not rig.stage.is_moving()
     assert rig.stage.position() == pytest.approx(where, abs=1e-7)
 
     rig.stage.move_to(15e-3, wait=False)
-    rig.clock.advance(3.0)  # cruising at 2.3 mm/s
+    run_for(rig, 3.0)  # cruising at 2.3 mm/s
     before = rig.stage.position()
     rig.stage.stop(immediate=False)
     rig.stage.wait_until_stopped()
@@ -147,23 +165,23 @@ def test_stop_mid_move_immediate_and_profiled(rig: Rig) -> None:
 def test_velocity_move_runs_until_stopped(rig: Rig) -> None:
     rig.stage.home()
     rig.stage.move_velocity(+1)
-    rig.clock.advance(2.0)
+    run_for(rig, 2.0)
     p = rig.stage.position()
     ramp = 2.3e-3 / 4e-3
     assert p == pytest.approx(2.3e-3 * (2.0 - ramp) + 0.5 * 4e-3 * ramp**2, rel=1e-4)
     rig.stage.move_velocity(-1)
-    rig.clock.advance(0.1)
+    run_for(rig, 0.1)
     assert rig.stage.status().raw & 0x20  # still decelerating: 0.575 s to turn round
-    rig.clock.advance(1.0)
+    run_for(rig, 1.0)
     assert rig.stage.status().raw & 0x10  # now moving towards smaller positions
     rig.stage.stop()
     assert not rig.stage.is_moving()
 
 
-def test_controller_soft_limits_stop_a_velocity_move(rig: Rig) -> None:
+def test_a_velocity_move_ends_at_the_software_limit(rig: Rig) -> None:
     rig.stage.home()
     rig.stage.move_velocity(+1)
-    rig.clock.advance(60.0)
+    run_for(rig, 60.0)
     st = rig.stage.status()
     assert not st.busy
     assert st.raw & 0x08  # the soft limit of larger counts (the protocol's "reverse")
@@ -171,8 +189,10 @@ def test_controller_soft_limits_stop_a_velocity_move(rig: Rig) -> None:
 
 
 def test_hard_limit_switch_bits(rig: Rig) -> None:
-    # Not homed: the controller's soft limits are inactive; run into the home-end switch.
-    rig.stage.move_velocity(-1)
+    # Not homed: the controller's soft limits are inactive; a velocity move from another
+    # client (gelrig's own stays within the software limits) runs into the home-end switch.
+    rig.sim.receive(encode(command(MsgId.MOT_MOVE_VELOCITY, CHANNEL,
+                                   Directions.named(FORWARD_IS_NEGATIVE).code(-1))))
     rig.clock.advance(10.0)
     st = rig.stage.status()
     assert st.at_lower_limit and not st.at_upper_limit and not st.busy
@@ -229,3 +249,37 @@ def test_calibration_mismatch_is_visible_with_a_wrong_counts_per_mm() -> None:
         stage.close()
     finally:
         unregister("calib")
+
+
+def test_status_updates_are_position_reports_within_their_send_windows() -> None:
+    """Every status update taken as a report was sent (by the simulator, with a 1 ms link
+    latency) within its window, and holds the position of that moment; the host reads only
+    every 0.32 s, yet the windows, narrowed by the stream's period, are a few ms wide."""
+    from gelrig.instrument.core.stage_path import PathReport
+
+    clock = VirtualClock()
+    sim = KDC101Simulator(clock, SimConfig(reply_latency_s=1e-3))
+    url = register(sim, "updates-path")
+    try:
+        stage = KDC101(url, StageConfig(status_updates=True), clock=clock).open()
+        stage.move_to(5e-3)
+        stage.move_to(7e-3, wait=False)
+        end = clock.now() + 4.0
+        while clock.now() < end:
+            clock.sleep(0.32)  # the host is busy elsewhere (a DAQ transfer's wait)
+            stage.position()
+        updates = [r for r in stage.path._reports if r.source == "update"]
+        assert len(updates) >= 30 and stage.status_reports == len(updates)
+        cpm = stage.config.counts_per_mm * 1e3
+        for r in updates:
+            # the update was sent at a multiple of the period after the stream started; the
+            # position it holds is the simulator's at some instant of its window
+            xs = [sim.counts_at(t) / cpm for t in np.linspace(r.lo, r.hi, 50)]
+            assert min(xs) - 1 / cpm <= r.x <= max(xs) + 1 / cpm, r
+        widths = np.array([r.hi - r.lo for r in updates])
+        assert np.median(widths) < 0.03
+        assert isinstance(updates[0], PathReport)
+        assert stage.path.disagreements == 0
+        stage.close()
+    finally:
+        unregister("updates-path")

@@ -11,11 +11,11 @@ from dataclasses import dataclass
 import pytest
 import serial
 
-from drivers.kdc101 import KDC101
-from drivers.kdc101.apt import MsgId, decode
-from instrument.clock import VirtualClock
-from instrument.errors import Disconnected
-from simulators.kdc101 import KDC101Simulator, register, unregister
+from gelrig.drivers.kdc101 import KDC101
+from gelrig.drivers.kdc101.apt import MsgId, decode
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import Disconnected
+from gelrig.simulators.kdc101 import KDC101Simulator, register, unregister
 
 _names = itertools.count()
 

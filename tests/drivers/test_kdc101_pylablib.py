@@ -10,15 +10,15 @@ from typing import Any
 
 import pytest
 
-from instrument.clock import PacedClock, VirtualClock
-from instrument.errors import DeviceErrorReply, LimitError
-from instrument.stage import Stage, StageConfig
-from simulators.kdc101 import KDC101Simulator, register, unregister
-from simulators.kdc101.serve import TcpServer
+from gelrig.instrument.contracts.stage import Stage, StageConfig
+from gelrig.instrument.core.clock import PacedClock, VirtualClock
+from gelrig.instrument.core.errors import DeviceErrorReply, LimitError
+from gelrig.simulators.kdc101 import KDC101Simulator, register, unregister
+from gelrig.simulators.kdc101.serve import TcpServer
 
 kinesis = pytest.importorskip("pylablib.devices.Thorlabs.kinesis", exc_type=ImportError)
 
-from drivers.kdc101.pylablib_backend import PylablibKDC101, pylablib_conn  # noqa: E402
+from gelrig.drivers.kdc101.pylablib_backend import PylablibKDC101, pylablib_conn  # noqa: E402
 
 CPM = 34554.96
 _names = itertools.count()

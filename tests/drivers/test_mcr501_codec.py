@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-import drivers.mcr501.commands as commands
-from drivers.mcr501.codec import (
+import gelrig.drivers.mcr501.commands as commands
+from gelrig.drivers.mcr501.codec import (
     InstrumentTrip,
     RequestError,
     UnknownCommand,
@@ -17,8 +17,8 @@ from drivers.mcr501.codec import (
     encode,
     error_line,
 )
-from drivers.mcr501.commands import COMMANDS, RECORD, split_key
-from instrument.errors import DeviceErrorReply, FramingError
+from gelrig.drivers.mcr501.commands import COMMANDS, RECORD, split_key
+from gelrig.instrument.core.errors import DeviceErrorReply, FramingError
 
 
 def test_table_says_it_is_unconfirmed() -> None:
@@ -29,7 +29,8 @@ def test_table_says_it_is_unconfirmed() -> None:
 
 def test_table_holds_every_command_the_rig_uses() -> None:
     assert set(COMMANDS) == {
-        "identify", "status", "zero_gap", "set_gap", "read_gap", "rotate", "stop", "hold",
+        "identify", "status", "zero_gap", "set_gap", "read_gap", "rotate", "rotate_for",
+        "stop", "hold",
         "read_angle", "read_torque", "read_normal_force", "start_stream", "stop_stream",
         "read_stream",
     }  # fmt: skip

@@ -13,12 +13,13 @@ from typing import Any
 
 import pytest
 
-from drivers.mcr501 import MCR501, VisaTransport
-from instrument.clock import VirtualClock
-from instrument.errors import DeviceErrorReply, LimitError
-from instrument.rheometer import Rheometer, RheometerConfig
-from instrument.sliding import rpm_from_speed
-from simulators.mcr501 import DirectLink, MCR501Simulator, SimConfig
+from gelrig.drivers.mcr501 import MCR501, VisaTransport
+from gelrig.instrument.contracts.bounded_motion import keep_moving
+from gelrig.instrument.contracts.rheometer import Rheometer, RheometerConfig
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import DeviceErrorReply, LimitError
+from gelrig.instrument.physics.sliding import rpm_from_speed
+from gelrig.simulators.mcr501 import DirectLink, MCR501Simulator, SimConfig
 from tests.drivers.mcr501_harness import rig
 
 PAPER_SPEEDS = (2.38e-5, 4.75e-5, 1.19e-4, 2.37e-4)
@@ -70,9 +71,9 @@ def test_rotation_both_directions_at_the_paper_speeds(rm: Any, speed: float) -> 
                 rpm_from_speed(speed, arm), rel=1e-6
             )
             assert r.drv.status().mode == "rotating"
-            r.clock.sleep(1.0)  # past the ramp
+            r.turn(1.0)  # past the ramp
             a0, t0 = r.drv.angle(), r.clock.now()
-            r.clock.sleep(10.0)
+            r.turn(10.0)
             rate = (r.drv.angle() - a0) / (r.clock.now() - t0)
             assert rate * arm == pytest.approx(sign * speed, rel=1e-5)
             theta = r.drv.theta()
@@ -123,7 +124,7 @@ def test_measurement_stream_in_virtual_time(rm: Any) -> None:
         t_start = r.clock.now()
         r.drv.start_stream(0.1)
         r.drv.rotate(1e-3)
-        r.clock.sleep(25.0)  # 250 points, more than one #DATA batch
+        r.turn(25.0)  # 250 points, more than one #DATA batch
         points = r.drv.read_stream()
         assert len(points) == 250
         times = [p.t for p in points]
@@ -157,7 +158,8 @@ def _stream_with_polling(poll: float | None) -> list[tuple[float, ...]]:
     t_end = clock.now() + 12.0
     while clock.now() < t_end:
         step = t_end - clock.now() if poll is None else min(poll, t_end - clock.now())
-        clock.sleep(step)
+        # the rotation is renewed either way (ADR 0201); only the reads differ
+        keep_moving(clock, drv, step, drv.config.motion_bound)
         if poll is not None:
             drv.torque()
             out += drv.read_stream()

@@ -10,17 +10,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from drivers.mcr501 import InstrumentTrip, UnknownCommand
-from instrument.clock import VirtualClock
-from instrument.errors import (
+from gelrig.drivers.mcr501 import InstrumentTrip, UnknownCommand
+from gelrig.instrument.contracts.rheometer import RheometerConfig
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import (
     DeviceErrorReply,
     Disconnected,
     FramingError,
     InstrumentTimeout,
     LimitError,
 )
-from instrument.rheometer import RheometerConfig
-from simulators.mcr501 import MCR501Simulator, SimConfig
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig
 from tests.drivers.mcr501_harness import Rig
 from tests.drivers.mcr501_harness import rig as _rig
 
@@ -33,7 +33,7 @@ def rig(rm: Any, sim_config: SimConfig | None = None, config: RheometerConfig | 
 
 def _spin(r: Rig, speed: float = 1e-3) -> None:
     r.drv.rotate(speed)
-    r.clock.sleep(1.0)
+    r.turn(0.9)  # past the ramp; the next request is not a renewal (due 0.5 s after the last)
     assert r.drv.maybe_rotating
 
 
@@ -153,8 +153,8 @@ def test_gap_below_the_configured_overlap_limit_is_refused_and_rotation_stops(rm
 
 
 def test_bad_argument_is_a_device_error() -> None:
-    from drivers.mcr501.codec import decode_reply
-    from drivers.mcr501.commands import COMMANDS
+    from gelrig.drivers.mcr501.codec import decode_reply
+    from gelrig.drivers.mcr501.commands import COMMANDS
 
     clock = VirtualClock()
     sim = MCR501Simulator(clock, SimConfig(start_referenced=True))

@@ -7,11 +7,11 @@ from typing import Any
 
 import pytest
 
-from drivers.mcr501 import MCR501
-from instrument.clock import VirtualClock
-from instrument.errors import Disconnected
-from simulators.mcr501 import MCR501Simulator, SimConfig
-from simulators.mcr501.link import DirectLink
+from gelrig.drivers.mcr501 import MCR501
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import Disconnected
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig
+from gelrig.simulators.mcr501.link import DirectLink
 from tests.drivers.mcr501_harness import rig
 
 
@@ -68,7 +68,7 @@ def test_ctrl_c_during_rotation_stops_the_arm_first(rm: Any,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     with rig(rm, SimConfig(start_referenced=True)) as r:
         r.drv.rotate(1e-3)
-        r.clock.sleep(1.0)
+        r.turn(0.9)  # the torque request below is then not preceded by a renewal
         link = r.drv._transport
         real_read = link.read_line
         calls = {"n": 0}

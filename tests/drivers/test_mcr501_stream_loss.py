@@ -10,12 +10,12 @@ from typing import Any
 
 import pytest
 
-from drivers.mcr501 import MCR501
-from drivers.mcr501.codec import InstrumentBusy, decode_reply
-from drivers.mcr501.commands import BUSY, COMMANDS, ERROR_CODES
-from drivers.mcr501.driver import StreamOverflow
-from instrument.errors import DeviceErrorReply
-from simulators.mcr501 import SimConfig
+from gelrig.drivers.mcr501 import MCR501
+from gelrig.drivers.mcr501.codec import InstrumentBusy, decode_reply
+from gelrig.drivers.mcr501.commands import BUSY, COMMANDS, ERROR_CODES
+from gelrig.drivers.mcr501.driver import StreamOverflow
+from gelrig.instrument.core.errors import DeviceErrorReply
+from gelrig.simulators.mcr501 import SimConfig
 from tests.drivers.mcr501_harness import rig
 
 BUFFER = 50

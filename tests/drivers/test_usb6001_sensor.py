@@ -12,24 +12,24 @@ import nidaqmx
 import numpy as np
 import pytest
 
-from drivers.usb6001 import (
+from gelrig.drivers.usb6001 import (
     DaqDeviceNotFoundError,
     DaqDriverNotFoundError,
     Usb6001Config,
     Usb6001ForceSensor,
 )
-from instrument.analysis import fit_relaxation, modulus_history
-from instrument.clock import Clock, PacedClock, VirtualClock
-from instrument.contact import Material, hertz_prefactor
-from instrument.errors import ConfigError, Disconnected, InstrumentError
-from instrument.loadcell import (
+from gelrig.instrument.analysis.relaxation import fit_relaxation, modulus_history
+from gelrig.instrument.contracts.loadcell import (
     AcquisitionOverflowError,
     ForceOverRangeError,
     ForceSensor,
     LoadCellChain,
 )
-from simulators.usb6001 import RunningServer, SimulatedUsb6001, compression_daq, start_server
-from simulators.usb6001.rig import SIM_OFFSET
+from gelrig.instrument.core.clock import Clock, PacedClock, VirtualClock
+from gelrig.instrument.core.errors import ConfigError, Disconnected, InstrumentError
+from gelrig.instrument.physics.contact import Material, hertz_prefactor
+from gelrig.simulators.usb6001 import RunningServer, SimulatedUsb6001, compression_daq, start_server
+from gelrig.simulators.usb6001.rig import SIM_OFFSET
 
 DIAMETER = 18.63e-3
 RADIUS = DIAMETER / 2

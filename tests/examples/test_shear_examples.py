@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import gelrig
-from instrument.store import RunDirectory
+from gelrig.instrument.core.store import RunDirectory
 from tests.gelrig import paper_ladder
 from tests.gelrig.test_paper_shear_features import check_features
 
@@ -120,7 +120,8 @@ def test_the_custom_ladder_records_its_passes_in_the_scripts_order(
 
 # The simulated stream can hold two points of one time ("two of one index",
 # simulators/mcr501/physics.py _release); the analysis's np.gradient over time then divides
-# by zero at that point (instrument/shear_analysis.py moving_mask). Reported; not this file's.
+# by zero at that point (instrument/analysis/shear_analysis.py moving_mask). Reported; not this
+# file's.
 @pytest.mark.filterwarnings("ignore:divide by zero encountered:RuntimeWarning",
                             "ignore:invalid value encountered:RuntimeWarning")
 def test_the_custom_ladder_analysis_finds_l_g_at_the_chord_for_every_speed(

@@ -16,20 +16,20 @@ from typing import Any
 import numpy as np
 
 from gelrig.analyze_run import AnalysisResult, analyze_run
-from gelrig.session import execute
-from instrument.clock import VirtualClock
-from instrument.contact import Material
-from instrument.shear_analysis import split_passes
-from instrument.sliding import SlidingGeometry, shear_pass
-from instrument.store import RunDirectory
-from protocols.events import RunState
-from protocols.rigfile import ShearRigSpec, default_rig, parse_rig
-from protocols.spec import load_protocol, paper_protocol, parse_protocol
+from gelrig.instrument.analysis.shear_analysis import split_passes
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.instrument.physics.contact import Material
+from gelrig.instrument.physics.sliding import SlidingGeometry, shear_pass
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import ShearRigSpec, default_rig, parse_rig
+from gelrig.protocols.spec import load_protocol, paper_protocol, parse_protocol
+from gelrig.terminal import record_run
 
 
 def rig(**simulator: Any) -> ShearRigSpec:
     """The built-in shear rig with ``simulator`` entries overridden (e.g. carry_history)."""
-    from instrument.fields import read_toml
+    from gelrig.instrument.core.fields import read_toml
 
     table = read_toml(default_rig("shear"), "rig file")
     table = copy.deepcopy(table)
@@ -60,7 +60,7 @@ def protocol(overlaps: int | None = None, speeds: list[str] | None = None) -> An
 def record(path: Path, spec: ShearRigSpec, proto: Any) -> RunDirectory:
     """Run ``proto`` on the simulated ``spec`` in virtual time, recorded to ``path``."""
     run = RunDirectory.create(path, {"protocol": proto.table, "rig": spec.table})
-    state, _ = execute(proto, spec, VirtualClock(), run, show=False)
+    state, _ = record_run(proto, spec, VirtualClock(), run, show=False)
     assert state is RunState.COMPLETED
     return run
 
@@ -106,7 +106,7 @@ def levels(run: RunDirectory, result: AnalysisResult, spec: ShearRigSpec
 def model_ratio(geo: SlidingGeometry, material: Material | None, speed: float, mu: float,
                 unloading: str = "cutoff") -> float:
     """l_c / l_g of one fresh pass of the model: the travel where F_perp > 0, over 2 psi0."""
-    from simulators.mcr501.config import PAPER_MATERIAL
+    from gelrig.simulators.mcr501.config import PAPER_MATERIAL
 
     sp = shear_pass(geo, material or PAPER_MATERIAL, speed, mu, dt=1e-6 / speed,
                     unloading=unloading)

@@ -17,13 +17,13 @@ import pytest
 
 from gelrig.analyze_run import analyze_run
 from gelrig.cli import main
-from gelrig.session import execute
-from instrument.clock import VirtualClock
-from instrument.errors import ConfigError
-from instrument.store import RunDirectory
-from protocols.events import RunState
-from protocols.rigfile import default_rig, load_rig
-from protocols.spec import parse_protocol
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import parse_protocol
+from gelrig.terminal import record_run
 
 SHEAR_STEPS = [{"kind": "speed_ladder", "name": "ladder", "overlaps": 2,
                 "first_overlap": "0.45 mm", "overlap_step": "0.25 mm",
@@ -32,7 +32,8 @@ SHEAR_STEPS = [{"kind": "speed_ladder", "name": "ladder", "overlaps": 2,
 HOLD_STEPS = [{"kind": "compression_contact_search", "name": "contact search", "probe": "0.5 mm",
                "speed": "0.3 mm/s", "threshold": "5 mN", "retract": "0.5 mm", "confirm": 2,
                "rate": "100 Hz"},
-              {"kind": "ramp_hold", "name": "ramp and hold", "hold": "600 s", "rate": "100 Hz",
+              {"kind": "ramp_hold", "diameter": "18.63 mm", "name": "ramp and hold",
+               "hold": "600 s", "rate": "100 Hz",
                "terms": 1}]
 
 
@@ -41,7 +42,7 @@ def record(kind, steps, path):
                                "step": steps})
     spec = load_rig(default_rig(kind))
     run = RunDirectory.create(path, {"protocol": protocol.table, "rig": spec.table})
-    state, _ = execute(protocol, spec, VirtualClock(), run, show=False)
+    state, _ = record_run(protocol, spec, VirtualClock(), run, show=False)
     assert state is RunState.COMPLETED
     return run
 
@@ -220,3 +221,28 @@ def test_the_ladder_shows_the_chord_per_pass_and_per_speed(shear_report):
         chord = 2 * math.sqrt(s**2 - (s - overlap) ** 2)
         assert f"{overlap * 1e3:.2f} mm  chord {chord * 1e3:6.3f} mm  l_g (mm)" in summary
     assert summary.count("l_c/l_g") >= 2
+
+
+def test_a_step_recorded_after_a_clock_restart_is_joined_in_time_order():
+    """A run resumed before resumes continued the time base: the ladder's times start at 0
+    again, after a contact search that ended at 700 s; the model fit needs the motion in time
+    order, so the ladder is moved on, and the problems say so."""
+    from gelrig.analyze_run import StepData, _history
+
+    def columns(t0: float) -> dict:
+        t = t0 + np.arange(5.0)
+        return {"t_s": t, "angle_rad": t * 0, "gap_m": t * 0 + 3e-3, "torque_Nm": t * 0,
+                "normal_force_N": t * 0, "pass": t * 0, "direction": t * 0 + 1}
+
+    search = StepData(0, "shear_contact_search", "contact search", "completed", {}, {},
+                      columns(700.0))
+    ladder = StepData(1, "speed_ladder", "ladder", "completed", {}, {}, columns(0.1))
+    problems: list[str] = []
+    history = _history([search, ladder], ladder, problems)
+    t = np.concatenate([h["t_s"] for h in history])
+    assert (np.diff(t) > 0).all()
+    assert len(problems) == 1 and "restarted the clock" in problems[0]
+    in_order: list[str] = []
+    joined = _history([search, StepData(1, "speed_ladder", "ladder", "completed", {}, {},
+                                        columns(800.0))], ladder, in_order)
+    assert in_order == [] and joined[1]["t_s"][0] == 800.0  # a continuous run: as recorded

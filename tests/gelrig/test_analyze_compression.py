@@ -13,13 +13,13 @@ import pytest
 
 from gelrig.analyze_run import analyze_run
 from gelrig.cli import main
-from gelrig.session import execute
-from instrument.clock import VirtualClock
-from instrument.csvio import write_columns
-from instrument.store import RunDirectory, read_step
-from protocols.events import RunState
-from protocols.rigfile import default_rig, load_rig
-from protocols.spec import parse_protocol
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.csvio import write_columns
+from gelrig.instrument.core.store import RunDirectory, read_step
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import parse_protocol
+from gelrig.terminal import record_run
 
 TOUCH = 6.2e-3  # m
 G_E = 7146.0  # Pa
@@ -31,7 +31,8 @@ def steps(hold):
     return [{"kind": "compression_contact_search", "name": "contact search", "probe": "0.5 mm",
              "speed": "0.3 mm/s", "threshold": "5 mN", "retract": "0.5 mm", "confirm": 2,
              "rate": "100 Hz"},
-            {"kind": "ramp_hold", "name": "ramp and hold", "hold": hold, "rate": "100 Hz",
+            {"kind": "ramp_hold", "diameter": "18.63 mm", "name": "ramp and hold", "hold": hold,
+             "rate": "100 Hz",
              "terms": 2}]
 
 
@@ -43,7 +44,7 @@ def record(path, seed, hold):
                                "step": steps(hold)})
     spec = load_rig(rig)
     run = RunDirectory.create(path / "run", {"protocol": protocol.table, "rig": spec.table})
-    state, _ = execute(protocol, spec, VirtualClock(), run, show=False)
+    state, _ = record_run(protocol, spec, VirtualClock(), run, show=False)
     assert state is RunState.COMPLETED
     return analyze_run(run.path, path / "analysis")
 

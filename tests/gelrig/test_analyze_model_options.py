@@ -18,8 +18,8 @@ import pytest
 
 from gelrig.analyze_run import AnalysisResult, analyze_run
 from gelrig.cli import main
-from instrument.model_fit import ModelFit
-from instrument.store import RunDirectory
+from gelrig.instrument.analysis.model_fit import ModelFit
+from gelrig.instrument.core.store import RunDirectory
 from tests.gelrig import paper_ladder
 from tests.gelrig.test_paper_shear_features import REDUCED_SPEEDS
 

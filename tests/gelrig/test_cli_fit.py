@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from gelrig.cli import main
-from instrument import paper
-from instrument.compression import ramp_hold
-from instrument.csvio import write_columns
+from gelrig.instrument.core.csvio import write_columns
+from gelrig.instrument.physics import paper
+from gelrig.instrument.physics.compression import ramp_hold
+from gelrig.instrument.physics.contact import Material
 
 R, D, V = paper.R_COMPRESSION, paper.DEPTH_HOLD, paper.RAMP_SPEED
 NOISE = 2e-4  # N
@@ -65,4 +66,24 @@ def test_one_term_keeps_the_old_shape(tmp_path, capsys):
     out, err = fit(capsys, hold_csv(tmp_path / "plates.csv", paper.PLATES, 23), terms=1)
     assert out["terms_resolved"] == 1 and err == ""
     assert set(out) == {"G_e", "relax", "t0_s", "rmse", "stderr", "relax_ramp_corrected",
-                        "terms_resolved"}
+                        "terms_resolved", "resolved"}
+
+
+def test_a_hold_that_resolves_no_term_reports_no_values(tmp_path, capsys):
+    """ADR 0261: a purely elastic hold (nothing relaxes) resolves no term; the JSON says
+    ``resolved: false`` and why, and its values are only under ``unresolved_fit``."""
+    rec = ramp_hold(R, D, V, 300.0, Material(7146.0, ()), dt=0.01)
+    force = rec.force + np.random.default_rng(5).normal(0.0, NOISE, rec.force.size)
+    path = write_columns(tmp_path / "elastic.csv", {"t_s": rec.t, "delta_m": rec.delta,
+                                                     "force_N": force})
+    out, err = fit(capsys, path, terms=1)
+    assert out["resolved"] is False and out["terms_resolved"] == 0
+    assert not {"G_e", "relax", "stderr", "rmse", "t0_s"} & set(out)  # no values as a result
+    assert out["not_resolved"] and out["terms_requested"] == 1
+    assert len(out["unresolved_fit"]["relax"]) == 1 and "G_e" in out["unresolved_fit"]
+    assert err.strip() == f"gelrig fit: not resolved: {out['not_resolved']}; no result"
+
+
+def test_a_resolved_fit_says_so(tmp_path, capsys):
+    out, _ = fit(capsys, hold_csv(tmp_path / "plates.csv", paper.PLATES, 24), terms=1)
+    assert out["resolved"] is True and out["G_e"] == pytest.approx(7146.0, rel=0.005)

@@ -2,6 +2,7 @@
 the Debian packages (exit 2), not Qt's plugin error."""
 
 import ctypes.util
+from pathlib import Path
 
 from gelrig.cli import main
 from gelrig.commands import gui as command
@@ -35,7 +36,7 @@ def test_gelrig_gui_without_libxcb_cursor_exits_2_with_one_line(monkeypatch, cap
     monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
     monkeypatch.setattr(ctypes.util, "find_library",
                         lambda name: None if name == "xcb-cursor" else present(name))
-    monkeypatch.setattr("gui.app.run_app", lambda services: 0)  # never a real window here
+    monkeypatch.setattr("gelrig.gui.app.run_app", lambda services: 0)  # never a real window here
     assert main(["gui"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
@@ -49,7 +50,16 @@ def test_gelrig_gui_without_a_display_says_so(monkeypatch, capsys):
     monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
     monkeypatch.setattr(ctypes.util, "find_library", present)
     monkeypatch.setattr(command.sys, "platform", "linux")
-    monkeypatch.setattr("gui.app.run_app", lambda services: 0)
+    monkeypatch.setattr("gelrig.gui.app.run_app", lambda services: 0)
     assert main(["gui"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "xvfb-run" in err
+
+
+def test_a_missing_glib_names_libglib():
+    missing = command.missing_libraries(
+        {"DISPLAY": ":0"}, lambda name: None if name == "glib-2.0" else present(name), "linux")
+    assert missing == ["libglib2.0-0"]
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    for _library, package in command.XCB_LIBRARIES:  # the README lists every one
+        assert package in readme, package

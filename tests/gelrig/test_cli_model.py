@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gelrig.cli import main
-from instrument import paper
-from instrument.csvio import read_columns
+from gelrig.instrument.core.csvio import read_columns
+from gelrig.instrument.physics import paper
 
 COMP = ["model", "compression", "--radius", "9.315 mm", "--depth", "1.1178 mm",
         "--rate", "37.26 um/s", "--hold", "600 s", "--g-e", "7146", "--relax", "630:1413 s"]

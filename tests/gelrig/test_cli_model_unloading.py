@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gelrig.cli import main
-from instrument.csvio import read_columns
+from gelrig.instrument.core.csvio import read_columns
 
 SHEAR = ["model", "shear", "--r1", "9.2e-3", "--r2", "9.96e-3", "--delta-max", "0.78 mm",
          "--speed", "2.37e-4", "--g-e", "4 kPa", "--relax", "20 kPa:2000 s", "--mu", "5e-3"]

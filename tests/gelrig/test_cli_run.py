@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from gelrig.cli import main
-from instrument.store import RunDirectory, read_step
+from gelrig.instrument.core.store import RunDirectory, read_step
 from tests.samples import SHORT_COMPRESSION
 
 SHORT = SHORT_COMPRESSION
@@ -71,7 +71,7 @@ def test_bad_protocol_file(tmp_path, capsys):
     (("[limits]", "[limitz]"), "[limitz]"),
 ])
 def test_bad_rig_file(tmp_path, capsys, short, edit, field):
-    from protocols.rigfile import default_rig
+    from gelrig.protocols.rigfile import default_rig
 
     text = default_rig("compression").read_text()
     assert edit[0] in text
@@ -83,7 +83,7 @@ def test_bad_rig_file(tmp_path, capsys, short, edit, field):
 
 
 def test_clock_checks(tmp_path, capsys, short):
-    from protocols.rigfile import default_rig
+    from gelrig.protocols.rigfile import default_rig
 
     assert main(["run", str(short()), "--clock", "paced:0", "--out", str(tmp_path / "a")]) == 2
     assert "--clock" in one_error_line(capsys)
@@ -108,10 +108,18 @@ def test_run_then_export(tmp_path, capsys, short):
     assert meta["instruments"]["force"]["instrument"] == "NI USB-6001"
     assert meta["protocol"]["protocol"]["name"] == "short compression"
     assert meta["rig"]["rig"]["kind"] == "compression"
-    capsys.readouterr()
+    # a 60 s hold resolves no term: run.json says so and the end-of-run line shows no values
+    fits = meta["steps"][1]["results"]["fits"]
+    assert [f["resolved"] for f in fits] == [False] * len(fits)
+    printed = capsys.readouterr().out
+    assert "1-term fit: not resolved: first term not resolved" in printed
+    assert f"G_e {fits[0]['G_e']:.0f}" not in printed
     assert main(["export", str(out), "--csv"]) == 0
     hold = pd.read_csv(out / "csv" / "01_ramp_and_hold.csv")
-    assert list(hold.columns) == ["t_s", "position_m", "delta_m", "force_N", "over_range"]
+    assert list(hold.columns) == ["t_s", "position_m", "delta_m", "force_N", "over_range",
+                                  "position_flag"]
+    assert hold["position_flag"].sum() == 0  # every position from the commanded path
+    assert {"stage", "force"} <= set(meta["time_base"])  # each instrument's time mapping
     assert len(hold) == meta["steps"][1]["samples"] > 6000
 
 
@@ -165,6 +173,12 @@ def test_sigkill_mid_hold_keeps_data_and_resume_completes(tmp_path, short):
     assert kept["index"] == 1 and "attempt-1" in kept["file"]
     partial = pd.DataFrame(read_step(Path(out) / kept["file"]))
     assert len(partial) >= flushed
+    # the attempt's extent comes from its file (the kill left run.json without it), and the
+    # resumed hold starts after its last sample: one time base per run
+    assert kept["samples"] == len(partial)
+    assert kept["finished"] == partial["t_s"].iloc[-1]
+    assert meta["steps"][1]["started"] >= kept["finished"]
+    assert read_step(Path(out) / meta["steps"][1]["file"])["t_s"][0] > kept["finished"]
 
 
 def test_demo_runs_both_paper_protocols(tmp_path, capsys):
@@ -184,7 +198,8 @@ def test_demo_runs_both_paper_protocols(tmp_path, capsys):
     out = capsys.readouterr().out
     assert str(tmp_path.resolve()) in out
     # the plates' second term is not resolved: its values are not printed as a result
-    assert "plates 2-term fit: second term not resolved" in out and "fit stands" in out
+    assert "plates 2-term fit: not resolved: second term not resolved" in out
+    assert "fit stands" in out
 
 
 def test_ctrl_c_pauses_then_aborts(tmp_path, short):
@@ -219,3 +234,26 @@ def test_ctrl_c_pauses_then_aborts(tmp_path, short):
     assert "Traceback" not in err and "pause requested" in err
     meta = run.read_metadata()
     assert meta["status"] == "aborted" and meta["reason"] == "aborted by Ctrl-C"
+
+
+def test_end_of_run_lines_print_each_fit_once_and_no_unresolved_values():
+    """run.json's fits of a hold: the 1-term fit once with its standard errors, the 2-term
+    request as not resolved with the reason; a 60 s hold's lone fit prints no values."""
+    from gelrig.commands.run import fit_lines
+
+    one = {"G_e": 7146.0, "relax": [{"G": 630.0, "tau": 1413.0}], "terms_resolved": 1,
+           "resolved": True, "stderr": {"G_e": 12.0, "G_1": 9.0, "tau_1": 40.0}}
+    two = {**one, "terms_requested": 2,
+           "not_resolved": "second term not resolved: BIC improvement 3 < 10",
+           "unresolved_fit": {}}
+    assert fit_lines([one, two]) == [
+        "1-term fit: G_e 7146 +- 12 Pa, G_1 630 +- 9 Pa, tau_1 1413 +- 40 s",
+        "2-term fit: not resolved: second term not resolved: BIC improvement 3 < 10"]
+    short_hold = {"G_e": 7772.0, "relax": [{"G": 54.0, "tau": 104.0}], "terms_resolved": 0,
+                  "resolved": False, "stderr": {"G_e": None},
+                  "not_resolved": "first term not resolved: BIC improvement 2 < 10"}
+    (line,) = fit_lines([short_hold])
+    assert line == "1-term fit: not resolved: first term not resolved: BIC improvement 2 < 10"
+    assert "7772" not in line and "104" not in line
+    assert fit_lines([{"error": "too few samples"}]) == ["1-term fit failed: too few samples"]
+

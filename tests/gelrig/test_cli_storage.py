@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from gelrig.cli import main
-from instrument.store import RESERVE_NAME, RunDirectory, read_step
-from protocols.rigfile import default_rig
+from gelrig.instrument.core.store import RESERVE_NAME, RunDirectory, read_step
+from gelrig.protocols.rigfile import default_rig
 from tests.samples import SHORT_COMPRESSION
 
 SHORT = SHORT_COMPRESSION
@@ -25,7 +25,7 @@ LIMITED = textwrap.dedent("""
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     limit = int(sys.argv[1])
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    import instrument.store as store
+    import gelrig.instrument.core.store as store
     store.FLUSH_INTERVAL = 0.0
     from gelrig.cli import main
     sys.exit(main(sys.argv[2:]))
@@ -131,7 +131,8 @@ def test_a_second_resume_names_the_holder(full_copy, capsys):
 
 def test_a_second_resume_in_another_process(full_copy):
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from instrument.store import RunDirectory\n"
+        [sys.executable, "-c",
+         "import sys, time; from gelrig.instrument.core.store import RunDirectory\n"
          "with RunDirectory(sys.argv[1]).lock():\n print('held', flush=True); time.sleep(60)",
          str(full_copy)], stdout=subprocess.PIPE, text=True)
     try:
@@ -153,11 +154,11 @@ def test_recorder_fault_stops_motion_in_process(tmp_path, monkeypatch):
     import h5py
 
     from gelrig.factory import build_rig
-    from instrument.clock import VirtualClock
-    from protocols.events import RunState
-    from protocols.rigfile import load_rig
-    from protocols.session import RecordedRun
-    from protocols.spec import parse_protocol
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.protocols.events import RunState
+    from gelrig.protocols.host import RunHost
+    from gelrig.protocols.rigfile import load_rig
+    from gelrig.protocols.spec import parse_protocol
 
     path = tmp_path / "p.toml"
     path.write_text(SHORT.format(hold="60 s"))
@@ -178,10 +179,11 @@ def test_recorder_fault_stops_motion_in_process(tmp_path, monkeypatch):
         return real_flush(self)
 
     monkeypatch.setattr(h5py.Dataset, "flush", flush)
-    monkeypatch.setattr("instrument.store.FLUSH_INTERVAL", 0.0)
+    monkeypatch.setattr("gelrig.instrument.core.store.FLUSH_INTERVAL", 0.0)
     run = RunDirectory.create(tmp_path / "run", {})
     try:
-        state = RecordedRun(rig, protocol).record(run).run()
+        with RunHost(rig, protocol, run) as host:
+            state = host.run()
     finally:
         rig.close()
     assert state is RunState.FAILED and stops
@@ -311,7 +313,7 @@ def test_malformed_grpc_address_at_load(tmp_path, short, capsys, address):
 
 
 def test_good_grpc_address_loads(tmp_path, short):
-    from protocols.rigfile import load_rig
+    from gelrig.protocols.rigfile import load_rig
 
     rig = rig_with(tmp_path, [(FORCE_SIM, '[force]\ntransport = "grpc"\n'
                                           'address = "grpc://daq-pc.lab:31763"')])

@@ -7,10 +7,10 @@ import io
 from rich.console import Console
 
 from gelrig.console import ConsoleView, fit_line
-from instrument import paper
-from instrument.live_fit import StopRule
-from instrument.live_fit_sim import simulate_hold
-from protocols.events import FitUpdate, Progress, StepFinished, StepStarted
+from gelrig.instrument.analysis.live_fit import StopRule
+from gelrig.instrument.analysis.live_fit_sim import simulate_hold
+from gelrig.instrument.physics import paper
+from gelrig.protocols.events import FitUpdate, Progress, StepFinished, StepStarted
 
 
 def test_progress_line_shows_tau_its_uncertainty_and_terms_and_the_end() -> None:

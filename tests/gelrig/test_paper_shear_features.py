@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from instrument.sliding import SlidingGeometry
+from gelrig.instrument.physics.sliding import SlidingGeometry
 from tests.gelrig import paper_ladder
 
 MU = 5e-3
@@ -93,9 +93,9 @@ def test_the_anisotropic_rig_is_fitted_with_separate_f_h_and_f_v_amplitudes(tmp_
     """The paper's anisotropy through the whole rig: ``[simulator] relax_vertical`` gives F_v
     G_l = 4 G_e (F_h keeps 5 G_e); the ladder fit with ``FitSetup(anisotropic=True)`` reports
     both amplitudes with intervals that hold the truth and are told apart."""
-    from instrument import paper
-    from instrument.ladder_analysis import analyse_ladder_step, fit_ladder_model
-    from instrument.model_fit import FitSetup
+    from gelrig.instrument.analysis.ladder_analysis import analyse_ladder_step, fit_ladder_model
+    from gelrig.instrument.analysis.model_fit import FitSetup
+    from gelrig.instrument.physics import paper
 
     spec = paper_ladder.rig(relax_vertical=[["16 kPa", "2000 s"]])
     run = paper_ladder.record(tmp_path / "run", spec, paper_ladder.protocol(

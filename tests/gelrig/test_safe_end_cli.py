@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from instrument.store import RunDirectory
+from gelrig.instrument.core.store import RunDirectory
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs SIGSTOP")
 
@@ -46,6 +46,7 @@ name = "hold"
 rig = "compression"
 [[step]]
 kind = "ramp_hold"
+diameter = "18.63 mm"
 first_touch = "3 mm"
 strain = 0.01
 strain_rate = "0.05 /s"

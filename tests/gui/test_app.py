@@ -12,15 +12,15 @@ import h5py
 import numpy as np
 import pytest
 from PySide6.QtGui import QColor, QImage
-from PySide6.QtWidgets import QMessageBox
 
 from gelrig.commands.gui import make_services
-from gui.binding import binding_problem
-from gui.mainwindow import MainWindow
-from gui.plots import CompressionPlots, ShearPlots, colour
-from protocols.events import RunState
-from protocols.rigfile import default_rig
-from simulators.kdc101.protocol_kdc101sim import lookup
+from gelrig.gui import dialogs
+from gelrig.gui.binding import binding_problem
+from gelrig.gui.mainwindow import MainWindow
+from gelrig.gui.plots import CompressionPlots, ShearPlots, colour
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig
+from gelrig.simulators.kdc101.protocol_kdc101sim import lookup
 
 BINDING = binding_problem()
 PACES = {1.0: 0, 10.0: 1, 100.0: 2, math.inf: 3}
@@ -31,7 +31,8 @@ def short_compression(hold="20 s", confirm=1):
     return {"protocol": {"name": "short compression", "rig": "compression"}, "step": [
         {"kind": "compression_contact_search", "start": "5 mm", "confirm": confirm,
          "tare_time": "0.2 s"},
-        {"kind": "ramp_hold", "strain": 0.01, "strain_rate": "0.01 /s", "hold": hold,
+        {"kind": "ramp_hold", "diameter": "18.63 mm", "strain": 0.01, "strain_rate": "0.01 /s",
+         "hold": hold,
          "rate": "1000 Hz", "retract": "0.5 mm", "terms": 1}]}
 
 
@@ -56,14 +57,15 @@ def open_window(qtbot, tmp_path):
         windows.append(window)
         window.show()
         window.start()
-        qtbot.waitUntil(lambda: window.session.rig is not None, timeout=20_000)
+        qtbot.waitUntil(lambda: window.desk.rig is not None, timeout=20_000)
         return window
 
     yield make
     for window in windows:
-        if window.session.running:
-            window.session.abort("test teardown")
-            qtbot.waitUntil(lambda w=window: not w.session.running, timeout=20_000)
+        if window.desk.running:
+            window.desk.abort("test teardown")
+            qtbot.waitUntil(lambda w=window: not w.desk.running, timeout=20_000)
+        window._leave_loaded = True  # teardown: close without asking about the sample
         window.close()
 
 
@@ -72,22 +74,28 @@ def home(qtbot, window):
     window.manual.buttons["home"].click()
     qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
     qtbot.waitUntil(lambda: window.instruments.values["moving"].text() == "at rest"
-                    and not window.session.moving_by_hand, timeout=15_000)
+                    and not window.desk.moving_by_hand, timeout=15_000)
+
+
+def confirm_moves(monkeypatch):
+    """Answer yes to every question: moves toward the sample before a contact search."""
+    monkeypatch.setattr(dialogs, "ask", lambda parent, title, text, on_answer, *a, **k:
+                        on_answer("yes"))
 
 
 def stage_sim(window):
-    address = window.session.rig.identities["stage"]["address"]
+    address = window.desk.rig.identities["stage"]["address"]
     return lookup(address.split("://", 1)[1])
 
 
 def wait_finished(qtbot, window, timeout=30_000):
-    qtbot.waitUntil(lambda: not window.session.running and window.protocol.state.finished,
+    qtbot.waitUntil(lambda: not window.desk.running and window.protocol.state.finished,
                     timeout=timeout)
     return window.protocol.state
 
 
 def samples_in(window, step):
-    steps = dict((s.index, cols) for s, cols in window.session.data.steps())
+    steps = dict((s.index, cols) for s, cols in window.desk.data.steps())
     return steps[step]["t_s"].size if step in steps else 0
 
 
@@ -103,10 +111,10 @@ def test_short_compression_run_fills_the_plots_and_opens_as_a_finished_run(qtbot
 
     plots = window.plots
     assert isinstance(plots, CompressionPlots)
-    n = window.session.data.samples()
+    n = window.desk.data.samples()
     assert n > 20_000  # the 20 s hold at 1 kHz and the search
     assert plots.points() == n
-    steps = {s.index: cols for s, cols in window.session.data.steps()}
+    steps = {s.index: cols for s, cols in window.desk.data.steps()}
     hold = steps[1]
     by_name = {c.name(): c for c in plots.force_t.listDataItems()}
     curve = by_name["1. ramp and hold"]
@@ -123,16 +131,16 @@ def test_short_compression_run_fills_the_plots_and_opens_as_a_finished_run(qtbot
     np.testing.assert_array_equal(curve.yData, hold["force_N"])
     plots.force_t.getPlotItem().getViewBox().enableAutoRange()
     qtbot.waitUntil(lambda: curve.xData.size < hold["t_s"].size, timeout=2_000)
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "completed" and meta["clock"] == "paced:inf"
     assert sum(s["samples"] for s in meta["steps"]) == n  # the plots saw what was recorded
-    (_s, cols), = [(s, c) for s, c in window.session.data.steps() if s.index == 1]
-    with h5py.File(window.session.run_path / meta["steps"][1]["file"]) as f:
+    (_s, cols), = [(s, c) for s, c in window.desk.data.steps() if s.index == 1]
+    with h5py.File(window.desk.run_path / meta["steps"][1]["file"]) as f:
         np.testing.assert_array_equal(f["force_N"][:], cols["force_N"])
     assert window.protocol.progress.value() == 1000
     assert "completed" in window.log.toPlainText()
 
-    viewer = window.open_run(window.session.run_path)
+    viewer = window.open_run(window.desk.run_path)
     assert viewer is not None
     assert viewer.plots.points() == n
     shown = {c.name(): c for c in viewer.plots.force_t.listDataItems()}
@@ -154,10 +162,10 @@ def test_pause_resume_and_abort_from_the_buttons(qtbot, open_window):
     assert panel.resume_button.isEnabled() and not panel.pause_button.isEnabled()
     assert not window.manual.buttons["home"].isEnabled()  # no manual moves during a run
     assert window.stop_button.isEnabled()
-    sim, clock = stage_sim(window), window.session.clock
-    n = window.session.data.samples()
+    sim, clock = stage_sim(window), window.desk.clock
+    n = window.desk.data.samples()
     qtbot.wait(300)
-    assert window.session.data.samples() == n  # nothing acquired or moved while paused
+    assert window.desk.data.samples() == n  # nothing acquired or moved while paused
     assert sim.velocity_at(clock.now()) == 0.0
 
     panel.resume_button.click()
@@ -167,7 +175,7 @@ def test_pause_resume_and_abort_from_the_buttons(qtbot, open_window):
     panel.abort_button.click()
     assert wait_finished(qtbot, window) == RunState.ABORTED
     assert sim.velocity_at(clock.now()) == 0.0
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "aborted"
     assert meta["steps"][1]["status"] == "aborted" and meta["steps"][1]["samples"] > 1000
     assert window.manual.buttons["home"].isEnabled()  # manual control is back
@@ -201,7 +209,7 @@ def test_a_fault_in_the_stage_shows_the_message_and_stops_motion(qtbot, open_win
     window = open_window(10.0)
     window.protocol.set_table(short_compression(hold="300 s"), "<test>")
     window.protocol.run_button.click()
-    sim, clock = stage_sim(window), window.session.clock
+    sim, clock = stage_sim(window), window.desk.clock
     qtbot.waitUntil(lambda: samples_in(window, 0) > 20 and sim.velocity_at(clock.now()) != 0,
                     timeout=20_000)
     sim.mute()  # the controller stops answering (it still obeys commands)
@@ -215,19 +223,22 @@ def test_a_fault_in_the_stage_shows_the_message_and_stops_motion(qtbot, open_win
     assert "InstrumentTimeout" in window.log.toPlainText()
     assert "InstrumentTimeout" not in window.statusBar().currentMessage()
     assert "STOP SENT, NOT CONFIRMED: stage unreachable" in box.text()  # the truth, no more
-    assert window.banner.state == "tripped" and "fault" in window.banner.text()
+    # the controller is silent: not monitoring, and the fault's trip stays until acknowledged
+    assert window.banner.state == "silent" and "KDC101 silent" in window.banner.text()
+    assert "TRIPPED, not acknowledged: fault" in window.banner.text()
     assert "InstrumentTimeout" not in window.banner.text()
     assert sim.velocity_at(clock.now()) == 0.0
     t = clock.now()
     qtbot.wait(200)
     assert sim.position_at(clock.now()) == sim.position_at(t)  # and it stays stopped
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "failed" and meta["faults"]
 
 
-def test_manual_control_homes_moves_and_stops(qtbot, open_window):
+def test_manual_control_homes_moves_and_stops(qtbot, open_window, monkeypatch):
     window = open_window(10.0)
-    sim, clock = stage_sim(window), window.session.clock
+    confirm_moves(monkeypatch)
+    sim, clock = stage_sim(window), window.desk.clock
     manual = window.manual
     home(qtbot, window)
     manual.entries["speed"].setValue(2.0)
@@ -259,7 +270,7 @@ def test_screenshot_of_the_main_window_mid_run(qtbot, open_window, tmp_path):
 
     qtbot.waitUntil(hold_drawn, timeout=10_000)
     qtbot.wait(100)
-    assert window.session.running
+    assert window.desk.running
     path = tmp_path / "main-window-mid-run.png"
     assert window.grab().save(str(path))
     image = QImage(str(path))
@@ -281,27 +292,27 @@ def test_closing_mid_run_asks_then_aborts_and_keeps_the_data(qtbot, open_window,
     window.protocol.set_table(short_compression(hold="300 s", confirm=0), "<test>")
     window.protocol.run_button.click()
     qtbot.waitUntil(lambda: samples_in(window, 1) > 1000, timeout=30_000)
-    sim, clock = stage_sim(window), window.session.clock
+    sim, clock = stage_sim(window), window.desk.clock
     asked = []
 
-    def answer(reply):
-        def question(*args, **kwargs):
-            asked.append(args[2])
-            return reply
-        return question
+    def answer(key):
+        def ask(parent, title, text, on_answer, *args, **kwargs):
+            asked.append(text)
+            on_answer(key)
+        return ask
 
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    monkeypatch.setattr(dialogs, "ask", answer("no"))
     assert not window.close()
-    assert window.session.running and window.isVisible()
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    assert window.desk.running and window.isVisible()
+    monkeypatch.setattr(dialogs, "ask", answer("yes"))
     window.close()
     qtbot.waitUntil(lambda: not window.isVisible(), timeout=20_000)
     assert len(asked) == 2 and "kept" in asked[0]
-    assert window.session.rig is None  # closed, after the run ended
+    assert window.desk.rig is None  # closed, after the run ended
     assert sim.velocity_at(clock.now()) == 0.0
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "aborted" and "closed" in meta["reason"]
-    with h5py.File(window.session.run_path / meta["steps"][1]["file"]) as f:
+    with h5py.File(window.desk.run_path / meta["steps"][1]["file"]) as f:
         assert f["force_N"].size == meta["steps"][1]["samples"] > 1000
 
 
@@ -330,7 +341,7 @@ def test_shear_passes_are_overlaid_by_speed_and_direction(qtbot, open_window):
 
 def test_readouts_follow_the_rig_and_time_runs_at_max_pace_when_idle(qtbot, open_window):
     window = open_window(math.inf)
-    clock = window.session.clock
+    clock = window.desk.clock
     t0 = clock.now()
     qtbot.waitUntil(lambda: window.instruments.values["force_N"].text() != "-", timeout=5_000)
     time.sleep(0.3)
@@ -353,7 +364,8 @@ def test_the_dry_run_rehearses_on_the_twin_and_a_failed_rehearsal_disables_run(q
     assert panel.status.text().startswith("ready: rehearsed on the rig's twin, ")
     # the static limit checks pass, the rehearsal does not: no first touch for the hold
     panel.set_table({"protocol": {"name": "hold only", "rig": "compression"},
-                     "step": [{"kind": "ramp_hold", "hold": "2 s"}]}, "<test>")
+                     "step": [{"kind": "ramp_hold", "diameter": "18.63 mm",
+                               "hold": "2 s"}]}, "<test>")
     assert "rehearsing..." in panel.plan_text.toPlainText()
     qtbot.waitUntil(lambda: panel.rehearsal is not None or bool(panel.rehearsal_error),
                     timeout=60_000)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gui.fit_panel import BAND, FitPanel, summary
-from instrument import paper
-from instrument.live_fit import StopRule
-from instrument.live_fit_sim import simulate_hold
-from protocols.events import FitUpdate, StepStarted
+from gelrig.gui.fit_panel import BAND, FitPanel, summary
+from gelrig.instrument.analysis.live_fit import StopRule
+from gelrig.instrument.analysis.live_fit_sim import simulate_hold
+from gelrig.instrument.physics import paper
+from gelrig.protocols.events import FitUpdate, StepStarted
 
 
 @pytest.fixture(scope="module")

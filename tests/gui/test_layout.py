@@ -17,12 +17,12 @@ from PySide6.QtCore import QPoint, QPointF, Qt
 from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication, QScrollArea
 
-from gui import mainwindow
-from gui.fmt import quantity
-from gui.plots import ShearPlots
-from protocols.events import RunState
+from gelrig.gui import mainwindow
+from gelrig.gui.fmt import quantity
+from gelrig.gui.plots import ShearPlots
+from gelrig.protocols.events import RunState
 from tests.gui import test_app
-from tests.gui.test_app import home, short_compression, stage_sim, wait_finished
+from tests.gui.test_app import confirm_moves, home, short_compression, stage_sim, wait_finished
 
 open_window = test_app.open_window  # the fixture: a window on a built-in simulated rig
 
@@ -74,9 +74,10 @@ def test_stop_and_the_manual_controls_are_outside_the_scroll_areas(qtbot, open_w
     assert window.header.readout.isVisible()
 
 
-def test_escape_stops_a_manual_move_from_any_widget(qtbot, open_window):
+def test_escape_stops_a_manual_move_from_any_widget(qtbot, open_window, monkeypatch):
     window = open_window(10.0)
-    sim, clock = stage_sim(window), window.session.clock
+    confirm_moves(monkeypatch)
+    sim, clock = stage_sim(window), window.desk.clock
     window.left_tabs.setCurrentIndex(1)
     manual = window.manual
     home(qtbot, window)
@@ -92,21 +93,48 @@ def test_escape_stops_a_manual_move_from_any_widget(qtbot, open_window):
     assert "STOP" in window.log.toPlainText()
 
 
-@pytest.mark.parametrize(("screen", "scale"), [((1440, 900), 2), ((1280, 720), 1)])
-def test_stop_and_the_status_bar_lie_in_the_window_at_2x_and_at_1280x720(tmp_path, screen,
-                                                                           scale):
-    """In a subprocess: the scale factor and the screen are fixed when Qt starts."""
+def probed(script: str, tmp_path: Path, screen: tuple[int, int], scale: int) -> dict:
+    """What the probe ``script`` (tests/gui) wrote, run in a subprocess on an offscreen
+    screen of ``screen`` pixels at ``QT_SCALE_FACTOR=scale``."""
     config = tmp_path / "screen.json"
     config.write_text(json.dumps({"screens": [{"name": "s", "x": 0, "y": 0,
                                                "width": screen[0], "height": screen[1],
                                                "logicalDpi": 96, "dpr": 1}]}))
     env = {**os.environ, "QT_SCALE_FACTOR": str(scale), "PYTHONPATH": str(ROOT),
            "QT_QPA_PLATFORM": f"offscreen:configfile={config}"}
-    script = ROOT / "tests" / "gui" / "layout_probe.py"
-    out = subprocess.run([sys.executable, str(script), str(tmp_path / "runs")], env=env,
-                         capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    probe = json.loads(out.stdout.strip().splitlines()[-1])
+    found = tmp_path / "probe.json"
+    out = subprocess.run([sys.executable, str(ROOT / "tests" / "gui" / script),
+                          str(tmp_path / "runs"), str(found)],
+                         env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and found.exists(), (out.stdout[-1000:], out.stderr[-2000:])
+    return json.loads(found.read_text())
+
+
+@pytest.mark.parametrize(("screen", "scale"), [((1280, 720), 1), ((1280, 720), 2),
+                                               ((2560, 1440), 2)])
+def test_every_dialog_lies_within_the_screen_at_1280x720_and_at_2x(tmp_path, screen, scale):
+    """The fault message (a long one keeps its first paragraph and the rest in its scrolling
+    details), the close-loaded and pause-in-hold questions, the file choosers (resizable,
+    shrunk to the screen) and About, each on a 1280x720 screen, at 2x on it (640x360
+    logical) and at 2x on 2560x1440."""
+    probe = probed("dialog_probe.py", tmp_path, screen, scale)
+    left, top, width, height = probe.pop("screen")
+    assert [width, height] == [screen[0] // scale, screen[1] // scale]
+    assert set(probe) == {"fault", "long fault", "about", "close loaded", "pause in hold",
+                          "open protocol", "open rig", "open run", "save protocol as"}
+    for name, shown in probe.items():
+        x, y, w, h = shown["frame"]
+        assert left <= x and top <= y and x + w <= left + width and y + h <= top + height, \
+            (name, shown, screen, scale)
+        assert shown["message"] or not shown["fixed"], name  # a chooser can be resized
+    assert probe["long fault"]["details"] and not probe["fault"]["details"]
+
+
+@pytest.mark.parametrize(("screen", "scale"), [((1440, 900), 2), ((1280, 720), 1)])
+def test_stop_and_the_status_bar_lie_in_the_window_at_2x_and_at_1280x720(tmp_path, screen,
+                                                                           scale):
+    """In a subprocess: the scale factor and the screen are fixed when Qt starts."""
+    probe = probed("layout_probe.py", tmp_path, screen, scale)
     logical = [screen[0] // scale, screen[1] // scale]  # 720x450 at 2x
     assert probe["screen"] == logical
     width, height = probe["window"]
@@ -115,6 +143,10 @@ def test_stop_and_the_status_bar_lie_in_the_window_at_2x_and_at_1280x720(tmp_pat
         x, y, w, h = probe[name]
         assert probe[f"{name}_visible"], name
         assert x >= 0 and x + w <= width and y >= 0 and y + h <= height, (name, probe)
+    assert "run_window" in probe, ("the short run did not finish within 90 s", probe)
+    x, y, w, h = probe["run_window"]  # Open run: within the screen, and may shrink more
+    assert x >= 0 and y >= 0 and x + w <= logical[0] and y + h <= logical[1], probe
+    assert probe["run_window_min"][0] <= w and probe["run_window_min"][1] <= h, probe
 
 
 def test_title_menus_and_open_run_start_where_the_runs_are(qtbot, open_window, tmp_path):
@@ -122,7 +154,7 @@ def test_title_menus_and_open_run_start_where_the_runs_are(qtbot, open_window, t
     assert "Plate-compression rig" in window.windowTitle()
     assert "simulated" in window.windowTitle()
     menus = {a.text().replace("&", ""): a.menu() for a in window.menuBar().actions()}
-    assert set(menus) == {"File", "Help"}
+    assert set(menus) == {"File", "Rig", "View", "Help"}
     file_items = [a.text().replace("&", "") for a in menus["File"].actions() if a.text()]
     for item in ("Open rig…", "Open protocol…", "Open run…", "Export plot as PNG…",
                  "Export data as CSV…", "Open report"):
@@ -140,7 +172,7 @@ def test_a_run_titles_the_window_numbers_steps_as_stored_and_shows_results(qtbot
     window.protocol.set_table(short_compression(hold="5 s"), "<test>")
     window.protocol.run_button.click()
     assert wait_finished(qtbot, window) == RunState.COMPLETED
-    run = window.session.run_path
+    run = window.desk.run_path
     assert f"run {run.name} (completed)" in window.windowTitle()
     assert window.report_button.isVisible() and window.report_action.isEnabled()
     meta = json.loads((run / "run.json").read_text())
@@ -150,9 +182,9 @@ def test_a_run_titles_the_window_numbers_steps_as_stored_and_shows_results(qtbot
     for s in meta["steps"]:
         assert f"step {s['index']} started: {s['name']}" in window.log.toPlainText()
     # time from the run's start: the first sample drawn at 0 s
-    t0 = window.session.data.t0
+    t0 = window.desk.data.t0
     first = min(c.pos().x() + c.xData[0] for c in plots.force_t.listDataItems())
-    starts = [(s.index, c["t_s"][0], c["t_s"][-1]) for s, c in window.session.data.steps()]
+    starts = [(s.index, c["t_s"][0], c["t_s"][-1]) for s, c in window.desk.data.steps()]
     items = [(c.name(), c.pos().x(), c.xData[0]) for c in plots.force_t.listDataItems()]
     assert first == 0.0 and t0 > 1.0, (t0, starts, items)  # the clock ran before the run
     assert plots.force_z.getPlotItem().getAxis("bottom").labelText == "plate position (mm)"
@@ -173,7 +205,7 @@ def test_a_run_titles_the_window_numbers_steps_as_stored_and_shows_results(qtbot
     with rows.open() as f:
         table = list(csv.reader(f))
     assert table[0][:3] == ["step", "t_s", "force_N"]
-    assert len(table) - 1 == window.session.data.samples()
+    assert len(table) - 1 == window.desk.data.samples()
     assert {row[0] for row in table[1:]} == {"0", "1"}
 
 
@@ -182,7 +214,7 @@ def test_a_finished_run_s_buffers_are_released_when_the_next_run_starts(qtbot, o
     window.protocol.set_table(short_compression(hold="2 s"), "<test>")
     window.protocol.run_button.click()
     assert wait_finished(qtbot, window) == RunState.COMPLETED
-    first = weakref.ref(window.session.data)
+    first = weakref.ref(window.desk.data)
     curves = [weakref.ref(c) for c in window.plots.force_t.listDataItems()]
     window.protocol.run_button.click()
     assert wait_finished(qtbot, window) == RunState.COMPLETED
@@ -191,7 +223,7 @@ def test_a_finished_run_s_buffers_are_released_when_the_next_run_starts(qtbot, o
     assert first() is None
     assert all(c() is None for c in curves)
 
-    viewer = window.open_run(window.session.run_path)
+    viewer = window.open_run(window.desk.run_path)
     held = weakref.ref(viewer.data)
     viewer.close()
     qtbot.waitUntil(lambda: not window.run_windows, timeout=5_000)
@@ -200,8 +232,9 @@ def test_a_finished_run_s_buffers_are_released_when_the_next_run_starts(qtbot, o
     assert held() is None
 
 
-def test_the_manual_tab_plots_force_and_position_live(qtbot, open_window):
+def test_the_manual_tab_plots_force_and_position_live(qtbot, open_window, monkeypatch):
     window = open_window(10.0)
+    confirm_moves(monkeypatch)
     window.left_tabs.setCurrentIndex(1)
     home(qtbot, window)  # a move before homing asks to home first
     window.manual.entries["target"].setValue(1.0)

@@ -3,17 +3,17 @@ detail for the log."""
 
 import pytest
 
-from drivers.mcr501.codec import decode_reply, error_line
-from drivers.mcr501.commands import COMMANDS
-from gui.messages import REPLIES, explain, explain_fault, in_words
-from instrument.errors import (
+from gelrig.drivers.mcr501.codec import decode_reply, error_line
+from gelrig.drivers.mcr501.commands import COMMANDS
+from gelrig.gui.messages import REPLIES, explain, explain_fault, in_words
+from gelrig.instrument.core.errors import (
     ConfigError,
     DeviceErrorReply,
     Disconnected,
     InstrumentTimeout,
     LimitError,
 )
-from protocols.rig import NotHomed
+from gelrig.protocols.rig import NotHomed
 
 
 def mcr_error(code: int) -> DeviceErrorReply:

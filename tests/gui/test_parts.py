@@ -6,20 +6,20 @@ import threading
 import numpy as np
 import pytest
 
-from gui.decimate import PeakDecimator
-from gui.fmt import entry_text, entry_value, quantity
-from gui.rundata import Columns, RunData
-from instrument.units import lab_time
-from protocols.events import Progress
-from protocols.plan import dry_run
-from protocols.rig import CompressionLimits
-from protocols.spec import parse_protocol
+from gelrig.gui.decimate import PeakDecimator
+from gelrig.gui.fmt import entry_text, entry_value, quantity
+from gelrig.gui.rundata import Columns, RunData
+from gelrig.instrument.core.units import lab_time
+from gelrig.protocols.events import Progress
+from gelrig.protocols.plan import dry_run
+from gelrig.protocols.rig import CompressionLimits
+from gelrig.protocols.spec import parse_protocol
 
 
 def protocol(strain=0.01, hold="20 s"):
     return parse_protocol({"protocol": {"name": "t", "rig": "compression"}, "step": [
         {"kind": "compression_contact_search", "start": "5 mm"},
-        {"kind": "ramp_hold", "strain": strain, "hold": hold}]})
+        {"kind": "ramp_hold", "diameter": "18.63 mm", "strain": strain, "hold": hold}]})
 
 
 def test_columns_grow_and_earlier_views_stay_valid():
@@ -92,7 +92,7 @@ def test_plan_gives_durations_and_fails_checks_over_the_limits():
 
 
 def test_eta_adds_later_steps_to_what_is_left_of_this_one():
-    from gui.protocol_panel import eta
+    from gelrig.gui.protocol_panel import eta
 
     plan = dry_run(protocol(hold="100 s"), CompressionLimits())
     d0, d1 = plan.durations
@@ -127,35 +127,49 @@ def test_pace_option_of_gelrig_gui():
 
 
 def test_stored_fits_say_when_a_second_term_is_not_resolved():
-    from gui.runview import stored_summary
+    """ADR 0261: the 2-term entry holds the resolved 1-term values; it is shown as not
+    resolved with its reason and no values, never as a 2-term result."""
+    from gelrig.gui.runview import stored_summary
 
-    fits = [{"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1},
+    fits = [{"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1,
+             "resolved": True},
             {"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1,
+             "resolved": False,
              "not_resolved": "second term not resolved: BIC improvement -20 < 10"}]
     meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": fits}}]}
-    lines = [line for line in stored_summary(meta).splitlines() if "fit:" in line]
-    assert len(lines) == 2 and "not resolved" not in lines[0]
-    assert lines[1].endswith("-- second term not resolved: BIC improvement -20 < 10")
-    assert "G_1 625 Pa" in lines[1]  # the resolved term is a result
+    lines = [line.strip() for line in stored_summary(meta).splitlines() if "fit" in line]
+    assert lines == ["1-term fit: G_e 7.15 kPa, G_1 625 Pa, tau_1 1413 s",
+                     "2-term fit: not resolved: second term not resolved: "
+                     "BIC improvement -20 < 10"]
+
+
+def test_an_older_run_json_without_resolved_is_judged_by_its_term_count():
+    from gelrig.gui.runview import stored_summary
+
+    fits = [{"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1},
+            {"G_e": 7146.0, "relax": [{"G": 625.0, "tau": 1413.0}], "terms_resolved": 1}]
+    meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": fits}}]}
+    lines = [line.strip() for line in stored_summary(meta).splitlines() if "fit" in line]
+    assert lines[0].startswith("1-term fit: G_e 7.15 kPa, G_1 625 Pa")
+    assert lines[1] == "2-term fit: not resolved: not every term is resolved"
+    assert "625" not in lines[1]
 
 
 def test_a_term_the_data_do_not_resolve_is_not_shown_as_a_result():
-    from gui.runview import stored_summary
+    from gelrig.gui.runview import stored_summary
 
     fit = {"G_e": 7840.0, "relax": [{"G": 46.7, "tau": 114.0}], "terms_resolved": 0,
            "not_resolved": "first term not resolved: BIC improvement -5.94 < 10"}
     meta = {"steps": [{"index": 1, "name": "ramp and hold", "results": {"fits": [fit]}}]}
-    (line,) = [x for x in stored_summary(meta).splitlines() if "fit:" in x]
-    head, _, tail = line.partition(" -- ")
-    assert "G_1" not in head and "G_e 7.84 kPa" in head
-    assert tail == ("first term not resolved: BIC improvement -5.94 < 10 "
-                    "(G_1 46.7 Pa, tau_1 114 s: not a result)")
+    (line,) = [x.strip() for x in stored_summary(meta).splitlines() if "fit" in x]
+    assert line == "1-term fit: not resolved: first term not resolved: BIC improvement -5.94 < 10"
+    assert "7.84" not in line and "46.7" not in line
 
 
 @pytest.mark.parametrize("pace, wall", [(1.0, ""), (10.0, " at 10x)"), (math.inf, "fast as")])
 def test_the_progress_line_numbers_steps_once_and_states_the_wall_time_only_when_it_differs(
         qtbot, pace, wall):
-    from gui.protocol_panel import ProtocolPanel
+    from gelrig.gui.protocol_panel import ProtocolPanel
 
     panel = ProtocolPanel()
     qtbot.addWidget(panel)
@@ -174,7 +188,7 @@ def test_the_progress_line_numbers_steps_once_and_states_the_wall_time_only_when
 
 @pytest.mark.parametrize("kind", ["compression", "shear"])
 def test_manual_rows_keep_their_height_and_the_tare_time_says_what_it_is(qtbot, kind):
-    from gui.manual import ManualPanel
+    from gelrig.gui.manual import ManualPanel
 
     panel = ManualPanel()
     qtbot.addWidget(panel)

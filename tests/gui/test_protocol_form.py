@@ -1,6 +1,6 @@
 """The protocol form reads values and ranges in the units the protocol file uses."""
 
-from gui.protocol_form import ProtocolForm
+from gelrig.gui.protocol_form import ProtocolForm
 
 TABLE = {"protocol": {"name": "search", "rig": "compression"}, "step": [
     {"kind": "compression_contact_search", "start": "5 mm", "speed": "0.3 mm/s"}]}

@@ -8,13 +8,13 @@ import json
 import math
 
 import pytest
-from PySide6.QtWidgets import QMessageBox
 
 from gelrig.commands.gui import make_services
-from gui.mainwindow import MainWindow
-from gui.messages import REPLIES
-from protocols.events import RunState
-from protocols.rigfile import default_rig
+from gelrig.gui import dialogs
+from gelrig.gui.mainwindow import MainWindow
+from gelrig.gui.messages import REPLIES
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig
 from tests.doubles import compression_rig
 from tests.gui.test_app import (
     home,
@@ -28,13 +28,14 @@ from tests.gui.test_app import (
 __all__ = ["open_window"]  # the fixture, shared with test_app
 
 
-def answer(monkeypatch, reply, asked=None, module=QMessageBox):
-    """Make QMessageBox.question answer ``reply`` (recording the questions in ``asked``)."""
-    def question(*args, **kwargs):
+def answer(monkeypatch, key, asked=None):
+    """Answer every (non-modal) question at once with ``key`` ("yes", "no", "unload"...),
+    recording the questions in ``asked``."""
+    def ask(parent, title, text, on_answer, choices=dialogs.YES_NO, default="no"):
         if asked is not None:
-            asked.append(args[2])
-        return reply
-    monkeypatch.setattr(module, "question", question)
+            asked.append(text)
+        on_answer(key)
+    monkeypatch.setattr(dialogs, "ask", ask)
 
 
 def move_to(window, mm, speed=0.5):
@@ -54,22 +55,25 @@ def soft_limit_window(qtbot, tmp_path):
     window = MainWindow(make_services(path, 10.0, tmp_path / "runs"))
     window.show()
     window.start()
-    qtbot.waitUntil(lambda: window.session.rig is not None, timeout=20_000)
+    qtbot.waitUntil(lambda: window.desk.rig is not None, timeout=20_000)
     yield window
+    window._leave_loaded = True  # teardown: close without asking about the sample
     window.close()
 
 
 def test_a_manual_move_into_the_sphere_trips_the_force_interlock_and_stops(
-        qtbot, soft_limit_window):
+        qtbot, soft_limit_window, monkeypatch):
     window = soft_limit_window
-    session, banner = window.session, window.banner
+    session, banner = window.desk, window.banner
     limit = session.rig.limits.max_force
     touch = session.spec.table["simulator"]["first_touch"]
     ended = []
     session.motion_ended.connect(ended.append)
     home(qtbot, window)
     assert banner.state == "armed" and "every manual motion" in banner.text()
-    speed = 0.5e-3
+    assert "overlap ≤ 2.5 mm NOT ARMED (first touch unknown" in banner.text()
+    answer(monkeypatch, "yes")  # before a contact search: confirmed, at most 0.3 mm/s
+    speed = 0.3e-3
     move_to(window, 12.0, speed=speed * 1e3)  # the end of travel, deep into the sphere
     qtbot.waitUntil(lambda: banner.state == "tripped", timeout=60_000)
     sim, clock = stage_sim(window), session.clock
@@ -112,16 +116,16 @@ def test_a_manual_move_into_the_sphere_trips_the_force_interlock_and_stops(
 
 def test_a_move_before_homing_asks_to_home_first(qtbot, open_window, monkeypatch):
     window = open_window(10.0)
-    sim, clock = stage_sim(window), window.session.clock
+    sim, clock = stage_sim(window), window.desk.clock
     qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "no", timeout=5_000)
     z = sim.position_at(clock.now())
     asked = []
-    answer(monkeypatch, QMessageBox.StandardButton.No, asked)
+    answer(monkeypatch, "no", asked)
     move_to(window, 4.0)
     assert len(asked) == 1 and "not homed" in asked[0]
     qtbot.wait(300)
     assert sim.position_at(clock.now()) == z  # nothing moved
-    answer(monkeypatch, QMessageBox.StandardButton.Yes, asked)
+    answer(monkeypatch, "yes", asked)
     move_to(window, 4.0)
     qtbot.waitUntil(lambda: window.instruments.values["homed"].text() == "yes", timeout=15_000)
     assert len(asked) == 2 and "stage home" in window.log.toPlainText()
@@ -133,10 +137,12 @@ def test_the_banner_does_not_monitor_when_disconnected_or_never_connected(qtbot,
     banner = window.banner
     qtbot.waitUntil(lambda: "now: force" in banner.text(), timeout=5_000)
     window.instruments.disconnect_button.click()
-    qtbot.waitUntil(lambda: window.session.rig is None and banner.state == "off",
+    qtbot.waitUntil(lambda: window.desk.rig is None and banner.state == "off",
                     timeout=10_000)
     assert "NOT MONITORING" in banner.text() and "now:" not in banner.text()
-    assert window.statusBar().currentMessage() == "disconnected"
+    qtbot.waitUntil(lambda: window.statusBar().currentMessage() == "disconnected",
+                    timeout=10_000)
+    assert window.header.readout.text() == "" == window.header.stale.text()
 
     base = make_services(default_rig("compression"), math.inf, tmp_path / "runs")
 
@@ -159,20 +165,26 @@ def test_the_banner_does_not_monitor_when_disconnected_or_never_connected(qtbot,
         broken.close()
 
 
+def holding(qtbot, open_window, pace=100.0):
+    """A window whose run holds the sample (a 3000 s hold)."""
+    window = open_window(pace)
+    window.protocol.set_table(short_compression(hold="3000 s", confirm=0), "<test>")
+    window.protocol.run_button.click()
+    qtbot.waitUntil(lambda: window.desk.holding, timeout=60_000)
+    return window
+
+
 def test_pause_during_a_hold_offers_to_end_it_and_the_run_goes_on(qtbot, open_window):
-    window = open_window(100.0)
+    window = holding(qtbot, open_window)
     panel = window.protocol
-    panel.set_table(short_compression(hold="3000 s", confirm=0), "<test>")
-    panel.run_button.click()
-    qtbot.waitUntil(lambda: window.session.holding, timeout=60_000)
     assert not panel.resume_button.isEnabled()  # not paused: nothing to resume
     qtbot.waitUntil(lambda: samples_in(window, 1) > 20_000, timeout=60_000)  # 1 kHz
     offered = []
-    panel.ask_hold = lambda: offered.append(True) or "end"
+    panel.ask_hold = lambda choose: offered.append(True) or choose("end")
     panel.pause_button.click()
     assert offered and "ending the hold now" in panel.status.text()
     assert wait_finished(qtbot, window, timeout=60_000) == RunState.COMPLETED
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     hold = meta["steps"][1]
     assert hold["status"] == "completed" and 0 < hold["results"]["held_s"] < 3000
     assert hold["samples"] > 1000  # its data kept
@@ -181,12 +193,9 @@ def test_pause_during_a_hold_offers_to_end_it_and_the_run_goes_on(qtbot, open_wi
 
 
 def test_pause_during_a_hold_can_abort(qtbot, open_window):
-    window = open_window(100.0)
+    window = holding(qtbot, open_window)
     panel = window.protocol
-    panel.set_table(short_compression(hold="3000 s", confirm=0), "<test>")
-    panel.run_button.click()
-    qtbot.waitUntil(lambda: window.session.holding, timeout=60_000)
-    panel.ask_hold = lambda: "abort"
+    panel.ask_hold = lambda choose: choose("abort")
     panel.pause_button.click()
     assert wait_finished(qtbot, window, timeout=30_000) == RunState.ABORTED
     assert "pause requested" not in panel.status.text()
@@ -195,18 +204,19 @@ def test_pause_during_a_hold_can_abort(qtbot, open_window):
 def test_a_loaded_sample_makes_run_and_disconnect_ask(qtbot, open_window, monkeypatch):
     window = open_window(10.0)
     home(qtbot, window)
+    answer(monkeypatch, "yes")  # before a contact search: confirmed
     move_to(window, 6.4)  # 0.2 mm into the sphere: loaded, within the limits
-    qtbot.waitUntil(lambda: bool(window.session.loaded) and not window.session.moving_by_hand,
+    qtbot.waitUntil(lambda: bool(window.desk.loaded) and not window.desk.moving_by_hand,
                     timeout=30_000)
     assert window.banner.unload_button.isVisible()
     asked = []
-    answer(monkeypatch, QMessageBox.StandardButton.No, asked)
+    answer(monkeypatch, "no", asked)
     window.protocol.set_table(short_compression(), "<test>")
     window.protocol.run_button.click()
     assert len(asked) == 1 and "loaded" in asked[0]
-    assert not window.session.running
+    assert not window.desk.running
     window.instruments.disconnect_button.click()
-    assert len(asked) == 2 and window.session.rig is not None
+    assert len(asked) == 2 and window.desk.rig is not None
 
 
 def test_errors_read_in_the_scientists_words_with_the_detail_in_the_log(qtbot, open_window):
@@ -230,13 +240,14 @@ def fake_window(qtbot, tmp_path):
     window.fakes = (rig, stage, force)
     window.show()
     window.start()
-    qtbot.waitUntil(lambda: window.session.rig is not None, timeout=10_000)
+    qtbot.waitUntil(lambda: window.desk.rig is not None, timeout=10_000)
     yield window
     stage.faults.thaw()
     force.faults.thaw()
+    window._leave_loaded = True
     window.close()
     if window.isVisible():
-        window.session.shutdown(5.0)
+        window.desk.shutdown(5.0)
 
 
 def test_stop_twice_ends_a_stuck_run_from_outside_with_a_verified_safe_stop(qtbot,
@@ -245,28 +256,31 @@ def test_stop_twice_ends_a_stuck_run_from_outside_with_a_verified_safe_stop(qtbo
     _rig, stage, force = window.fakes
     window.protocol.set_table(short_compression(hold="3000 s"), "<test>")
     window.protocol.run_button.click()
-    qtbot.waitUntil(lambda: window.session.data.samples() > 0, timeout=20_000)
+    qtbot.waitUntil(lambda: window.desk.data.samples() > 0, timeout=60_000)  # loaded CI
     force.faults.freeze()  # the run blocks in a force read that ignores its deadline
     qtbot.waitUntil(force.faults.blocked.is_set, timeout=10_000)
     window.stop_button.click()
     qtbot.wait(200)
-    assert window.session.running  # one press: the abort waits for the run
+    assert window.desk.running  # one press: the abort waits for the run
     window.stop_button.click()
-    qtbot.waitUntil(lambda: not window.session.running, timeout=30_000)
+    qtbot.waitUntil(lambda: not window.desk.running, timeout=30_000)
     assert force.faults.blocked.is_set()  # the run thread is still stuck
     assert window.protocol.state == RunState.ABORTED
     box = window.last_message
     assert box is not None and "motion stopped (verified)" in box.text()
     assert not stage.is_moving()
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "aborted" and meta["safe_state"]["verified"]
     assert "stuck" in meta["reason"]
-    assert window.banner.state == "tripped"  # the alarm says so until acknowledged
+    # the rig thread is still stuck: not monitoring, and the trip stays until acknowledged
+    assert window.banner.state == "silent", window.banner.text()
+    assert "stuck in an instrument call" in window.banner.text()
+    assert "TRIPPED, not acknowledged" in window.banner.text()
 
 
 def test_a_manual_rotation_is_watched_with_live_values_and_stop_ends_it(qtbot, open_window):
     window = open_window(10.0, rig="shear")
-    session, manual = window.session, window.manual
+    session, manual = window.desk, window.manual
     manual.buttons["zero_gap"].click()
     qtbot.waitUntil(lambda: window.instruments.values["gap_referenced"].text() == "yes",
                     timeout=15_000)
@@ -292,12 +306,12 @@ def test_closing_during_a_stuck_run_ends_it_from_outside_and_closes(qtbot, fake_
     _rig, stage, force = window.fakes
     window.protocol.set_table(short_compression(hold="3000 s"), "<test>")
     window.protocol.run_button.click()
-    qtbot.waitUntil(lambda: window.session.data.samples() > 0, timeout=20_000)
+    qtbot.waitUntil(lambda: window.desk.data.samples() > 0, timeout=60_000)  # loaded CI
     force.faults.freeze()
     qtbot.waitUntil(force.faults.blocked.is_set, timeout=10_000)
-    answer(monkeypatch, QMessageBox.StandardButton.Yes)
+    answer(monkeypatch, "yes")
     window.close()  # asks, aborts; the run does not answer; closing ends it from outside
     qtbot.waitUntil(lambda: not window.isVisible(), timeout=30_000)
-    meta = json.loads((window.session.run_path / "run.json").read_text())
+    meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "aborted" and meta["safe_state"]["verified"]
     assert not stage.is_moving()

@@ -6,8 +6,8 @@ import tomllib
 import pytest
 
 from gelrig.factory import build_rig
-from instrument.clock import VirtualClock
-from protocols.rigfile import default_rig, parse_rig
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.protocols.rigfile import default_rig, parse_rig
 
 
 def rig_table(kind: str) -> dict:

@@ -5,20 +5,21 @@ from __future__ import annotations
 
 import pytest
 
-from instrument import paper
-from instrument.errors import ConfigError
-from protocols.events import Event, EventBus, FitUpdate, RunState
-from protocols.plan import dry_run
-from protocols.rig import CompressionLimits
-from protocols.runner import Runner
-from protocols.spec import parse_protocol
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.physics import paper
+from gelrig.protocols.events import Event, EventBus, FitUpdate, RunState
+from gelrig.protocols.plan import dry_run
+from gelrig.protocols.rig import CompressionLimits
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.spec import parse_protocol
 from tests.doubles import compression_rig
 
 NOISE = 0.2e-3  # N, the rig file's force noise
 
 
 def protocol(**hold: object) -> object:
-    step = {"kind": "ramp_hold", "first_touch": "6.2 mm", "tare_time": "0.5 s", **hold}
+    step = {"kind": "ramp_hold", "diameter": "18.63 mm", "first_touch": "6.2 mm",
+            "tare_time": "0.5 s", **hold}
     return parse_protocol({"protocol": {"name": "t", "rig": "compression"}, "step": [step]})
 
 
@@ -66,7 +67,7 @@ def test_plate_adaptive_hold_ends_before_3000_s_within_2_percent() -> None:
 def test_an_unwatched_run_skips_what_only_informs_but_keeps_what_steers() -> None:
     """A rehearsal (``watched=False``): a fixed hold makes no live refits and no fits (they
     inform, they do not change the run's course), an adaptive hold still refits and ends
-    where a watched run ends (docs/decisions/0090, addendum 4)."""
+    where a watched run ends (docs/decisions/0090)."""
     fixed, none = run_hold(paper.PLATES, watched=False, hold="1000 s", terms=1)
     assert none == [] and fixed["fits"] == [] and fixed["hold_end"] == "planned"
     assert fixed["held_s"] == pytest.approx(1000.0, abs=0.1)

@@ -8,13 +8,13 @@ import tomllib
 import numpy as np
 import pytest
 
-from instrument.store import RunDirectory
-from protocols.control import RunControl
-from protocols.events import EventBus, InterlockTrip, RunState, Samples, StateChanged
-from protocols.recorder import Recorder
-from protocols.rig import CompressionLimits
-from protocols.runner import Runner
-from protocols.spec import paper_protocol, parse_protocol
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import EventBus, InterlockTrip, RunState, Samples, StateChanged
+from gelrig.protocols.recorder import Recorder
+from gelrig.protocols.rig import CompressionLimits
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.spec import paper_protocol, parse_protocol
 
 TRUE_TOUCH = 6.2e-3  # protocols/rigs/compression.toml [simulator] first_touch
 TRUE_G_E, TRUE_TAU = 7146.0, 1413.0

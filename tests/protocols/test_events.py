@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from instrument.store import RunDirectory
-from protocols.events import (
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.events import (
     EventBus,
     Finished,
     InterlockTrip,
@@ -13,7 +13,7 @@ from protocols.events import (
     StepStarted,
     as_columns,
 )
-from protocols.recorder import Recorder
+from gelrig.protocols.recorder import Recorder
 
 
 def test_bus_isolates_ordinary_subscribers_and_propagates_critical():

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from instrument.errors import ConfigError
-from protocols.rigfile import CompressionRigSpec, default_rig, load_rig, parse_rig
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.protocols.rigfile import CompressionRigSpec, default_rig, load_rig, parse_rig
 
 MDR_RIG = Path(__file__).resolve().parents[2] / "examples" / "rigs" / "compression_mdr.toml"
 

@@ -5,9 +5,9 @@ import re
 
 import pytest
 
-from instrument.contact import Material
-from instrument.errors import ConfigError
-from protocols.rigfile import ShearRigSpec, parse_rig
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.physics.contact import Material
+from gelrig.protocols.rigfile import ShearRigSpec, parse_rig
 
 
 def shear(**simulator):

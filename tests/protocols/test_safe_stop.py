@@ -8,19 +8,20 @@ from pathlib import Path
 
 import pytest
 
-from instrument.store import RunDirectory
-from protocols.control import RunControl
-from protocols.events import Event, EventBus, Fault, RunState, SafeStopped
-from protocols.rig import CompressionLimits, ShearLimits
-from protocols.runner import Runner
-from protocols.safestop import Unanswered, bounded
-from protocols.session import RecordedRun
-from protocols.spec import parse_protocol
-from protocols.watchdog import Watchdog
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import Event, EventBus, Fault, RunState, SafeStopped
+from gelrig.protocols.host import RunHost
+from gelrig.protocols.rig import CompressionLimits, ShearLimits
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.safestop import Unanswered, bounded
+from gelrig.protocols.spec import parse_protocol
+from gelrig.protocols.watchdog import Watchdog
 from tests.doubles import compression_rig, shear_rig
 
 TOUCH = 6.2e-3
-HOLD = {"kind": "ramp_hold", "first_touch": "6.2 mm", "hold": "100 s", "terms": 1,
+HOLD = {"kind": "ramp_hold", "diameter": "18.63 mm", "first_touch": "6.2 mm", "hold": "100 s",
+        "terms": 1,
         "strain_rate": "0.02 /s", "tare_time": "0.2 s"}
 
 
@@ -84,12 +85,13 @@ def test_retract_distance_comes_from_the_rig_file_and_zero_only_stops() -> None:
 def test_a_stop_that_fails_is_not_claimed() -> None:
     rig, stage, force = compression_rig()
     force.faults.fail_at = 50.0
-    stage.faults.fail_at = 50.0  # the stage's link drops too
+    stage.faults.fail_at = 50.0  # the stage's link drops too (and cannot be reopened)
     runner = Runner(rig, protocol("compression", HOLD))
     assert runner.run() is RunState.FAILED
     safe = runner.safe_state
     assert safe is not None and not safe.verified
-    assert safe.line() == "STOP SENT, NOT CONFIRMED: stage unreachable - check the rig"
+    assert not safe.axes[0].stop_sent  # a write on a lost link is not a stop sent
+    assert safe.line() == "STOP NOT SENT: stage link lost and not reopened - check the rig"
     assert "motion stopped" not in safe.line()
 
 
@@ -148,9 +150,14 @@ def test_shear_fault_stops_the_arm_and_lifts_it() -> None:
     rheo.rotate(1e-3)
     safe = rig.safe_stop("test")
     assert safe.verified
-    assert safe.line() == "motion stopped (verified); arm lifted to gap 4.500 mm"
+    # the touch gap is not known: the normal force read back says the arm is clear
+    assert safe.line() == ("motion stopped (verified); arm lifted to gap 4.500 mm, normal force "
+                           "0 mN read back")
     assert rheo.gap() == pytest.approx(4.5e-3)
     assert rheo.calls[-2:] == ["stop", "set_gap 0.0045"]
+    rig.know_touch_gap(3e-3)
+    rheo.set_gap(2.5e-3)
+    assert rig.safe_stop("test").line() == "motion stopped (verified); arm lifted to gap 4.500 mm"
 
 
 def test_shear_only_stops_when_asked_or_unreferenced() -> None:
@@ -161,17 +168,17 @@ def test_shear_only_stops_when_asked_or_unreferenced() -> None:
     rig, rheo = shear_rig()
     rheo.rotate(1e-3)  # no zero_gap: a gap move is not possible, stopping is all
     assert rig.safe_stop("test").line() == "motion stopped (verified)"
-    rheo.faults.unreachable = True
+    rheo.faults.unreachable = True  # its link is lost (Disconnected) and cannot be reopened
     assert rig.safe_stop("test").line() == (
-        "STOP SENT, NOT CONFIRMED: rheometer unreachable - check the rig")
+        "STOP NOT SENT: rheometer link lost and not reopened - check the rig")
 
 
 def test_run_json_records_the_safe_state(tmp_path: Path) -> None:
     rig, _stage, force = compression_rig()
     force.faults.fail_at = 50.0
     run = RunDirectory.create(tmp_path / "run", {})
-    recorded = RecordedRun(rig, protocol("compression", HOLD)).record(run)
-    assert recorded.run() is RunState.FAILED
+    with RunHost(rig, protocol("compression", HOLD), run) as host:
+        assert host.run() is RunState.FAILED
     meta = run.read_metadata()
     assert meta["status"] == "failed"
     safe = meta["safe_state"]
@@ -202,11 +209,11 @@ def test_watchdog_faults_a_run_whose_data_stops(tmp_path: Path) -> None:
     bus.subscribe(freeze_in_hold)
     threading.Thread(target=thaw_after_expiry, daemon=True).start()
     run = RunDirectory.create(tmp_path / "run", {})
-    recorded = RecordedRun(rig, protocol("compression", HOLD), bus, control).record(run)
     start = time.monotonic()
-    assert recorded.run() is RunState.FAILED
+    with RunHost(rig, protocol("compression", HOLD), run, bus=bus, control=control) as host:
+        assert host.run() is RunState.FAILED
     assert time.monotonic() - start < 8.0
-    assert recorded.reason.startswith("watchdog: no data for")
+    assert host.reason.startswith("watchdog: no data for")
     faults = [e for e in seen if isinstance(e, Fault)]
     assert [f.kind for f in faults] == ["WatchdogExpired"]
     assert safe_of(seen).state.verified
@@ -224,7 +231,7 @@ def test_watchdog_is_quiet_while_events_flow_or_paused() -> None:
     dog(Event(0.0))
     now[0] = 8.0
     assert not dog.check()
-    from protocols.events import StateChanged
+    from gelrig.protocols.events import StateChanged
 
     dog(StateChanged(0.0, RunState.RUNNING, RunState.PAUSED))
     now[0] = 100.0
@@ -236,11 +243,12 @@ def test_watchdog_is_quiet_while_events_flow_or_paused() -> None:
 
 def test_cli_ends_a_run_stuck_in_a_frozen_instrument(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    """The watchdog fires, the run thread cannot see it (its read is frozen): the CLI's
-    execute does the safe stop itself, records it and exits 1 (a fault)."""
-    from gelrig import session
+    """The watchdog fires, the run thread cannot see it (its read is frozen): the host ends
+    the run from outside (safe stop, run.json), the terminal prints the line and exits 1."""
+    from gelrig.protocols import host as hosting
+    from gelrig.terminal import run_in_terminal
 
-    monkeypatch.setattr(session, "GRACE", 0.3)
+    monkeypatch.setattr(hosting, "GRACE", 0.3)
     rig, _stage, force = compression_rig(limits=CompressionLimits(watchdog=0.3))
     bus = EventBus()
 
@@ -250,18 +258,17 @@ def test_cli_ends_a_run_stuck_in_a_frozen_instrument(tmp_path: Path,
 
     bus.subscribe(freeze_in_hold)
     run = RunDirectory.create(tmp_path / "run", {})
-    recorded = RecordedRun(rig, protocol("compression", HOLD), bus).record(run)
     codes: list[int] = []
     log_path = tmp_path / "run" / "gelrig.log"
     start = time.monotonic()
     try:
-        with session.run_logging(log_path), pytest.raises(Exception, match="did not end"):
-            session._execute(recorded, run, False, log_path, codes.append)
+        with RunHost(rig, protocol("compression", HOLD), run, bus=bus) as host:
+            state = run_in_terminal(host, show=False, exit=codes.append)
         took = time.monotonic() - start
         assert force.faults.blocked.is_set()  # really stuck in the read
     finally:
         force.faults.thaw()
-    assert codes == [1]
+    assert codes == [1] and state is RunState.FAILED
     assert took < 8.0
     meta = run.read_metadata()
     assert meta["status"] == "failed"

@@ -11,22 +11,23 @@ from typing import Any, ClassVar
 
 import pytest
 
-from instrument.errors import ConfigError
-from instrument.fields import Field, param
-from protocols.context import StepContext
-from protocols.events import Event, EventBus, Finished, SafeStopped, StepStarted
-from protocols.rig import CompressionLimits, CompressionRig
-from protocols.runner import Runner
-from protocols.script import Run, Script, load_script, protocol
-from protocols.spec import parse_protocol
-from protocols.steps import BUILT_IN, KINDS, register
-from protocols.steps.base import StepDefinition, StepParams, StepPlan, StepResult
-from protocols.steps.compression_search import SearchResult
-from protocols.steps.ramp_hold import RampHoldResult
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.fields import Field, param
+from gelrig.protocols.context import StepContext
+from gelrig.protocols.events import Event, EventBus, Finished, SafeStopped, StepStarted
+from gelrig.protocols.rig import CompressionLimits, CompressionRig
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.script import Run, Script, load_script, protocol
+from gelrig.protocols.spec import parse_protocol
+from gelrig.protocols.steps import BUILT_IN, KINDS, register
+from gelrig.protocols.steps.base import StepDefinition, StepParams, StepPlan, StepResult
+from gelrig.protocols.steps.compression_search import SearchResult
+from gelrig.protocols.steps.ramp_hold import RampHoldResult
 from tests.doubles import compression_rig
 
 SEARCH = {"start": "3 mm", "confirm": 1, "tare_time": "0.5 s"}
-HOLD = {"hold": "20 s", "terms": 1, "strain_rate": "0.02 /s", "rate": "100 Hz"}
+HOLD = {"diameter": "18.63 mm", "hold": "20 s", "terms": 1, "strain_rate": "0.02 /s",
+        "rate": "100 Hz"}
 
 
 def events(bus: EventBus) -> list[Event]:
@@ -129,13 +130,15 @@ def test_a_bad_parameter_names_the_script_the_step_and_the_field() -> None:
     @protocol(rig="compression")
     def typo(run: Run) -> None:
         run.step("compression_contact_search", **SEARCH)
-        run.step("ramp_hold", strain="50 %")
+        run.step("ramp_hold", diameter="18.63 mm", strain="50 %")
 
     rig, _stage, _ = compression_rig()
     runner = Runner(rig, typo)
-    assert runner.run().value == "failed"
-    assert "ConfigError" in runner.reason and "[step[1]] strain" in runner.reason
-    assert "test_script.py" in runner.reason
+    assert runner.run().value == "refused"  # a bad value is refused before it moves
+    assert runner.reason.startswith('step 1 (ramp and hold): strain = "50 %": allowed ')
+    assert "(at test_script.py:" in runner.reason
+    assert "refused before it moved (the data of the 1 step before it are kept)" in \
+        runner.reason
 
 
 def test_a_script_step_beyond_a_cap_is_refused_before_it_moves() -> None:
@@ -147,7 +150,7 @@ def test_a_script_step_beyond_a_cap_is_refused_before_it_moves() -> None:
     rig, stage, _ = compression_rig()
     runner = Runner(rig, too_deep)
     calls = len(stage.calls)
-    assert runner.run().value == "failed"
+    assert runner.run().value == "refused"
     assert "step 1 (ramp and hold): depth 3.7260 mm beyond the overlap limit" in runner.reason
     assert "refused before it moved" in runner.reason
     assert len(stage.calls) > calls  # the search ran, and the safe stop retracted
@@ -263,7 +266,7 @@ def test_a_protocol_file_loads_step_kinds_from_a_module_next_to_it(tmp_path) -> 
     file.write_text('[protocol]\nname = "naps"\nrig = "compression"\n'
                     'step_kinds = ["nap_steps.py"]\n\n[[step]]\nkind = "nap_a"\nnap = "5 s"\n')
     try:
-        from protocols.spec import load_protocol
+        from gelrig.protocols.spec import load_protocol
 
         spec = load_protocol(file)
         assert spec.steps[0].kind == "nap_a" and spec.steps[0].params.nap == 5.0
@@ -279,7 +282,7 @@ def test_a_missing_step_kind_module_is_one_line(tmp_path) -> None:
     file = tmp_path / "p.toml"
     file.write_text('[protocol]\nname = "p"\nrig = "compression"\nstep_kinds = ["gone.py"]\n'
                     '[[step]]\nkind = "x"\n')
-    from protocols.spec import load_protocol
+    from gelrig.protocols.spec import load_protocol
 
     with pytest.raises(ConfigError, match=r"\[protocol\] step_kinds\[0\].*no such Python file"):
         load_protocol(file)
@@ -307,24 +310,25 @@ def test_load_script_finds_the_one_protocol_and_names_what_is_wrong(tmp_path) ->
 
 
 def test_a_step_name_with_a_unit_names_a_safe_data_file(tmp_path) -> None:
-    from instrument.fields import Where
-    from instrument.store import RunDirectory
-    from protocols.spec import make_step
+    from gelrig.instrument.core.fields import Where
+    from gelrig.instrument.core.store import RunDirectory
+    from gelrig.protocols.spec import make_step
 
-    step = make_step("ramp_hold", "cycle at 1 um/s ../x", {}, "compression", Where("step[0]"))
+    step = make_step("ramp_hold", "cycle at 1 um/s ../x", {"diameter": "12 mm"}, "compression",
+                     Where("step[0]"))
     path = RunDirectory(tmp_path).step_path(3, step.name)
     assert path.parent == tmp_path / "steps" and path.name == "03_cycle_at_1_um_s_.._x.h5"
 
 
 def test_script_parameters_are_checked_kept_and_given_back_on_resume(tmp_path) -> None:
-    from protocols.script import script_from_table
+    from gelrig.protocols.script import script_from_table
 
     file = tmp_path / "series.py"
     file.write_text("import gelrig\n\n@gelrig.protocol(rig='compression', name='s')\n"
                     "def series(run, strains=(0.02,), hold='60 s'):\n"
                     "    for strain in strains:\n"
                     "        run.step('ramp_hold', strain=strain, hold=hold, first_touch='6.2 mm',"
-                    " strain_rate='0.02 /s', rate='100 Hz', terms=1)\n")
+                    " diameter='18.63 mm', strain_rate='0.02 /s', rate='100 Hz', terms=1)\n")
     script = load_script(file)
     assert script.parameters() == {"strains": (0.02,), "hold": "60 s"}
     with pytest.raises(ConfigError, match=r"series\.py takes strains, hold"):

@@ -5,13 +5,13 @@ import threading
 import numpy as np
 import pytest
 
-from instrument.store import RunDirectory
-from protocols.control import RunControl
-from protocols.events import EventBus, InterlockTrip, RunState, Samples, StateChanged
-from protocols.recorder import Recorder
-from protocols.rig import ShearLimits
-from protocols.runner import Runner
-from protocols.spec import load_protocol, paper_protocol, parse_protocol
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import EventBus, InterlockTrip, RunState, Samples, StateChanged
+from gelrig.protocols.recorder import Recorder
+from gelrig.protocols.rig import ShearLimits
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.spec import load_protocol, paper_protocol, parse_protocol
 
 
 def short_ladder(**params):
@@ -25,8 +25,8 @@ def short_ladder(**params):
 def paper_run(tmp_path_factory):
     """The paper's shear protocol on the built-in simulated rig (TCP), recorded."""
     from gelrig.factory import build_rig
-    from instrument.clock import VirtualClock
-    from protocols.rigfile import default_rig, load_rig
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.protocols.rigfile import default_rig, load_rig
 
     rig = build_rig(load_rig(default_rig("shear")), VirtualClock())
     run = RunDirectory.create(tmp_path_factory.mktemp("shear") / "run", {})

@@ -2,9 +2,9 @@
 
 import pytest
 
-from instrument.errors import ConfigError
-from protocols.rig import CompressionLimits, ShearLimits
-from protocols.spec import load_protocol, paper_protocol, parse_protocol
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.protocols.rig import CompressionLimits, ShearLimits
+from gelrig.protocols.spec import load_protocol, paper_protocol, parse_protocol
 
 
 def test_paper_protocols_load_and_plan():
@@ -34,7 +34,7 @@ def test_plan_flags_a_limit_violation():
 
 
 GOOD = {"protocol": {"name": "p", "rig": "compression"},
-        "step": [{"kind": "ramp_hold", "hold": "10 s"}]}
+        "step": [{"kind": "ramp_hold", "diameter": "18.63 mm", "hold": "10 s"}]}
 
 
 @pytest.mark.parametrize("mutate,field,needle", [

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import pytest
 
-from instrument.contact import Material
-from protocols.control import RunControl
-from protocols.events import EventBus, InterlockTrip, RunState
-from protocols.rig import CompressionLimits
-from protocols.runner import Runner
-from protocols.spec import parse_protocol
+from gelrig.instrument.physics.contact import Material
+from gelrig.protocols.control import RunControl
+from gelrig.protocols.events import EventBus, InterlockTrip, RunState
+from gelrig.protocols.rig import CompressionLimits
+from gelrig.protocols.runner import Runner
+from gelrig.protocols.spec import parse_protocol
 from tests.doubles import compression_rig, shear_rig
 
 
@@ -48,7 +48,8 @@ def test_contact_search_gives_up_after_max_travel() -> None:
 def test_ramp_hold_reaches_its_depth_and_fits_the_modulus() -> None:
     material = Material.of(7146.0, [(630.0, 100.0)])
     rig, stage, _ = compression_rig(material=material)
-    hold = {"kind": "ramp_hold", "hold": "400 s", "terms": 1, "strain_rate": "0.02 /s"}
+    hold = {"kind": "ramp_hold", "diameter": "18.63 mm", "hold": "400 s", "terms": 1,
+            "strain_rate": "0.02 /s"}
     runner = Runner(rig, protocol("compression", SEARCH, hold))
     assert runner.run() is RunState.COMPLETED, runner.reason
     result = runner.results[1]
@@ -61,8 +62,8 @@ def test_ramp_hold_reaches_its_depth_and_fits_the_modulus() -> None:
 
 def test_ramp_hold_without_first_touch_fails_before_moving() -> None:
     rig, stage, _ = compression_rig()
-    runner = Runner(rig, protocol("compression", {"kind": "ramp_hold"}))
-    assert runner.run() is RunState.FAILED
+    runner = Runner(rig, protocol("compression", {"kind": "ramp_hold", "diameter": "18.63 mm"}))
+    assert runner.run() is RunState.REFUSED
     assert "first_touch" in runner.reason
     assert not any(c.startswith("move_to") for c in stage.calls)
 
@@ -73,7 +74,8 @@ def test_force_interlock_stops_the_stage_and_ends_the_run() -> None:
     bus = EventBus()
     trips: list[InterlockTrip] = []
     bus.subscribe(lambda e: trips.append(e) if isinstance(e, InterlockTrip) else None)
-    runner = Runner(rig, protocol("compression", SEARCH, {"kind": "ramp_hold", "hold": "1 s"}),
+    runner = Runner(rig, protocol("compression", SEARCH, {"kind": "ramp_hold",
+                                                          "diameter": "18.63 mm", "hold": "1 s"}),
                     bus)
     assert runner.run() is RunState.ABORTED
     assert runner.reason.startswith("interlock force")

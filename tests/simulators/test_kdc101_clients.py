@@ -12,9 +12,10 @@ from typing import Any
 
 import pytest
 
-from instrument.clock import PacedClock
-from simulators.kdc101 import KDC101Simulator
-from simulators.kdc101.serve import PtyServer, TcpServer
+from gelrig.instrument.core.clock import PacedClock
+from gelrig.simulators.kdc101 import KDC101Simulator
+from gelrig.simulators.kdc101.config import SimConfig
+from gelrig.simulators.kdc101.serve import PtyServer, TcpServer
 
 CPM = 34554.96
 MM = round(CPM)
@@ -33,9 +34,11 @@ def _until(check: Callable[[], bool], what: str, timeout: float = WAIT_S) -> Non
 kinesis = pytest.importorskip("pylablib.devices.Thorlabs.kinesis", exc_type=ImportError)
 
 
-@pytest.fixture
-def tcp() -> Iterator[tuple[KDC101Simulator, TcpServer]]:
-    sim = KDC101Simulator(PacedClock(5.0))  # slow enough to see a short move in progress
+@pytest.fixture(params=["ideal", "documented"])
+def tcp(request: pytest.FixtureRequest) -> Iterator[tuple[KDC101Simulator, TcpServer]]:
+    # slow enough to see a short move in progress; ideal, or with the documented 16 ms reply
+    # and status latency (ADR 0242)
+    sim = KDC101Simulator(PacedClock(5.0), SimConfig(timing=request.param))
     server = TcpServer(sim).start()
     yield sim, server
     server.stop()
@@ -126,6 +129,30 @@ def test_pylablib_jog_and_moves_go_the_way_its_readout_says(motor: Any) -> None:
     assert not motor.is_moving() and 4 * MM < motor.get_position() < 10 * MM
 
 
+def test_pylablib_move_to_further_on_mid_move_keeps_the_speed(motor: Any, tcp: Any) -> None:
+    """What gelrig's bounded segments rely on (ADR 0201): an absolute target sent while a move
+    is under way, further on in the same direction, takes over without slowing down, and the
+    stage comes to rest on the last target sent (its own client: pylablib's move_to)."""
+    sim, _ = tcp
+    motor.setup_velocity(max_velocity=round(1.0 * 772981.3692), acceleration=1055,
+                         scale=False)  # 1 mm/s, 4 mm/s^2
+    p0 = motor.get_position()
+    target = p0 + MM  # 1 mm ahead: it would start to slow down 0.875 mm on
+    motor.move_to(target)
+    _until(lambda: abs(sim.velocity_at(sim.clock.now())) > 0.999e-3, "the stage to cruise")
+    speeds = []
+    for _ in range(5):  # renewed 5 times, each 1 mm ahead of where the stage is
+        time.sleep(0.06)  # 0.3 s of sim time
+        target = motor.get_position() + MM
+        motor.move_to(target)
+        speeds.append(abs(sim.velocity_at(sim.clock.now())))
+        assert "moving_fw" in motor.get_status()
+    assert min(speeds) == pytest.approx(1e-3, rel=1e-5)  # no dip at any renewal
+    motor.wait_move(timeout=WAIT_S)
+    assert motor.get_position() == target
+    assert not motor.is_moving()
+
+
 def test_pylablib_rehome_with_force_waits_for_the_new_homing(motor: Any, tcp: Any) -> None:
     sim, _ = tcp
     motor.home(sync=True, force=False, timeout=WAIT_S)
@@ -158,9 +185,9 @@ def test_second_tcp_client_is_refused_and_the_first_keeps_working(motor: Any, tc
 tad = pytest.importorskip("thorlabs_apt_device", exc_type=ImportError)
 
 
-@pytest.fixture
-def stage() -> Iterator[tuple[KDC101Simulator, Any]]:
-    sim = KDC101Simulator(PacedClock(20.0))
+@pytest.fixture(params=["ideal", "documented"])
+def stage(request: pytest.FixtureRequest) -> Iterator[tuple[KDC101Simulator, Any]]:
+    sim = KDC101Simulator(PacedClock(20.0), SimConfig(timing=request.param))
     server = PtyServer(sim).start()
     dev = tad.KDC101(serial_port=server.address, home=False)  # default invert_direction_logic
     try:

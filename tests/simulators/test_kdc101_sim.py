@@ -16,17 +16,17 @@ import numpy as np
 import pytest
 import serial
 
-from drivers.kdc101 import KDC101
-from drivers.kdc101 import payloads as pl
-from drivers.kdc101.apt import AptFramer, Message, MsgId, command, data_message, encode
-from instrument.clock import PacedClock, VirtualClock
-from simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
-from simulators.kdc101.kinematics import (
+from gelrig.drivers.kdc101 import KDC101
+from gelrig.drivers.kdc101 import payloads as pl
+from gelrig.drivers.kdc101.apt import AptFramer, Message, MsgId, command, data_message, encode
+from gelrig.instrument.core.clock import PacedClock, VirtualClock
+from gelrig.instrument.core.motion import (
     Trajectory,
     clip_to_travel,
     plan_move,
     trapezoid_duration,
 )
+from gelrig.simulators.kdc101 import KDC101Simulator, SimConfig, register, unregister
 
 CPM = 34554.96
 D = pl.Directions.named("forward_is_negative")  # the default convention (ADR 0100)
@@ -68,6 +68,23 @@ def test_retargeting_mid_move_keeps_the_past() -> None:
     assert [traj.position_at(t / 10) for t in range(0, 21)] == past  # a pure function of t
     assert traj.velocity_at(2.0) == pytest.approx(v)  # no jump in velocity
     assert traj.position_at(traj.end_time) == pytest.approx(1e-3)
+
+
+def test_a_trajectory_keeps_a_day_of_its_past_not_all_of_it() -> None:
+    """A simulator that runs for weeks (a session of many runs) keeps a bounded path: the
+    phases of the last HISTORY seconds, every position in them unchanged."""
+    from gelrig.instrument.core.motion import HISTORY
+
+    traj = Trajectory(0.0)
+    t, x = 0.0, 0.0
+    for k in range(3000):  # a move every 100 s for 3.5 days
+        target = 5e-3 if k % 2 == 0 else 1e-3
+        traj.replace_from(t, plan_move(t, x, 0.0, target, 2e-3, 4e-3))
+        t, x = t + 100.0, target
+    recent = [traj.position_at(t - s) for s in np.linspace(0, HISTORY - 200, 50)]
+    assert len(traj._phases) <= 5 * (HISTORY / 100 + 2)  # a day of moves, not 3.5 days'
+    traj.replace_from(t, plan_move(t, x, 0.0, 2e-3, 2e-3, 4e-3))
+    assert [traj.position_at(t - s) for s in np.linspace(0, HISTORY - 200, 50)] == recent
 
 
 def test_travel_limit_is_a_dead_stop() -> None:
@@ -114,6 +131,17 @@ def wire() -> Iterator[Wire]:
     yield Wire(clock, sim, port, AptFramer())
     port.close()
     unregister(name)
+
+
+def test_the_simulator_keeps_only_its_latest_messages(wire: Wire,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    from gelrig.simulators.kdc101 import device
+
+    monkeypatch.setattr(device, "KEPT_MESSAGES", 10)
+    for _ in range(100):
+        wire.send(command(MsgId.MOT_REQ_POSCOUNTER, 1))
+    assert 10 <= len(wire.sim.received) <= 20
+    assert all(m.msg_id == MsgId.MOT_REQ_POSCOUNTER for m in wire.sim.received)
 
 
 def test_hw_get_info_says_kdc101_with_a_27_serial(wire: Wire) -> None:
@@ -222,7 +250,7 @@ def test_homing_sets_the_homed_bit_and_zeroes_the_counter(wire: Wire) -> None:
 )
 def test_invalid_requests_are_logged_not_answered(wire: Wire, request_msg: Message, text: str,
                                                   caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level("WARNING", logger="simulators.kdc101"):
+    with caplog.at_level("WARNING", logger="gelrig.simulators.kdc101"):
         wire.send(request_msg)
         # The next query's reply is the next thing on the wire: no error message before it.
         reply = wire.ask(command(MsgId.MOT_REQ_STATUSBITS, 1))
@@ -408,3 +436,26 @@ def test_serve_refuses_a_virtual_clock() -> None:
          "--clock", "virtual"], capture_output=True, text=True, cwd=ROOT, timeout=30)
     assert proc.returncode == 2
     assert "--clock" in proc.stderr and "in-process" in proc.stderr
+
+
+def test_a_served_simulator_wakes_for_its_next_status_update_at_the_pace() -> None:
+    """At paced:100 the next status update is due within 1 ms of real time: the server waits
+    no longer for the host's bytes (POLL_S, 2 ms of real time, would be 0.2 s of lab time:
+    updates would go out in pairs). On a real clock it polls every POLL_S as before."""
+    from gelrig.simulators.kdc101.serve import POLL_S, TcpServer
+
+    for rate in (100.0, 1.0):
+        clock = PacedClock(rate)
+        sim = KDC101Simulator(clock)
+        server = TcpServer(sim)
+        try:
+            sim.receive(encode(command(MsgId.HW_START_UPDATEMSGS)))
+            due = (sim.next_event_time() - clock.now()) / rate
+            wait = server._wait()
+            assert wait <= min(POLL_S, due) + 1e-9
+            if rate == 1.0:
+                assert wait == POLL_S
+            else:
+                assert wait <= 0.1 / rate
+        finally:
+            server.close()

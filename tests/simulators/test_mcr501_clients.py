@@ -17,8 +17,8 @@ import pytest
 import pyvisa
 from pyvisa.errors import VisaIOError
 
-from instrument.clock import VirtualClock
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 
 VERS = "#VERS[MCR501;SN80000000;03.40]"
 OVERFLOW = 0x20
@@ -249,3 +249,79 @@ def test_the_line_bound_is_256_bytes(client: Any) -> None:
     assert client.query(longest) == ":RUN[OK]"
     assert client.query(":RUN[0" + longest[5:]) == "#ERR[11;line too long, at most 256 bytes]"
     assert client.query(":STAT[?]").startswith(":STAT[IDLE;")
+
+
+# ---- time-limited rotation (docs/decisions/0201) ------------------------------------------
+
+def _stat(res: Any) -> tuple[str, int]:
+    mode, flags = res.query(":STAT[?]")[6:-1].split(";")
+    return mode, int(flags, 16)
+
+
+def _angle(res: Any) -> float:
+    return float(res.query(":ANG[?]")[5:-1])
+
+
+def test_a_time_limited_rotation_ends_by_itself(bench: Bench, client: Any) -> None:
+    assert client.query(":ROT[CW;1.000000e+00;1.5]") == ":ROT[OK]"
+    bench.clock.sleep(1.4)
+    assert _stat(client) == ("ROT", 0)
+    bench.clock.sleep(0.2)  # past the end: ramping down as after :STOP[] (0x08)
+    assert _stat(client) == ("IDLE", 0x08)
+    bench.clock.sleep(1.0)
+    assert _stat(client) == ("IDLE", 0)
+    rest = _angle(client)
+    # 1 rpm: ramps up and down at 0.5 rad/s^2 (0.21 s each) around 1.5 s of turning, which
+    # covers the angle of 1.5 s at full speed
+    omega = 2 * 3.141592653589793 / 60
+    assert rest == pytest.approx(57.29577951 * omega * 1.5, abs=2e-6)
+    bench.clock.sleep(10.0)
+    assert _angle(client) == rest
+
+
+def test_the_same_rotation_again_renews_it(bench: Bench, client: Any) -> None:
+    assert client.query(":ROT[CCW;5.000000e-01;1.5]") == ":ROT[OK]"
+    for _ in range(8):  # renewed every second for 8 s: turning all along
+        bench.clock.sleep(1.0)
+        assert _stat(client)[0] == "ROT"
+        assert client.query(":ROT[CCW;5.000000e-01;1.5]") == ":ROT[OK]"
+    assert bench.sim.renewals == 8
+    bench.clock.sleep(1.6)  # not renewed: it stops 1.5 s after the last one
+    assert _stat(client)[0] == "IDLE"
+    # a new speed is a new rotation, not a renewal
+    assert client.query(":ROT[CW;5.000000e-01;1.5]") == ":ROT[OK]"
+    assert client.query(":ROT[CW;6.000000e-01;1.5]") == ":ROT[OK]"
+    assert bench.sim.renewals == 8
+    assert client.query(":STOP[]") == ":STOP[OK]"
+    bench.clock.sleep(3.0)
+    assert _stat(client) == ("IDLE", 0)
+
+
+def test_a_rotation_ended_while_nobody_asked_ends_at_its_own_time(bench: Bench) -> None:
+    """The client that turned the arm goes away; one that comes 60 s later reads the arm
+    where the rotation's end left it, not where it would be had it turned on."""
+    first = bench.open()
+    assert first.query(":ROT[CW;2.000000e+00;1.5]") == ":ROT[OK]"
+    bench.clock.sleep(0.5)
+    moving = _angle(first)
+    first.close()
+    bench.clock.sleep(60.0)
+    second = bench.open()
+    try:
+        assert _stat(second) == ("IDLE", 0)
+        omega = 2 * 2 * 3.141592653589793 / 60
+        ramp = omega / 0.5
+        # from 0.5 s: 1.0 s more at full speed, then the ramp down (half the speed on average)
+        assert _angle(second) - moving == pytest.approx(
+            57.29577951 * omega * (1.0 + ramp / 2), abs=1e-5)
+    finally:
+        second.close()
+
+
+def test_time_limited_rotation_arguments(client: Any) -> None:
+    allowed = "allowed 0 < duration <= 3600 s]"
+    assert client.query(":ROT[CW;1.0;0]") == f"#ERR[13;duration 0 s, {allowed}"
+    assert client.query(":ROT[CW;1.0;4000]") == f"#ERR[13;duration 4000 s, {allowed}"
+    assert client.query(":ROT[CW;1e3;1.5]").startswith("#ERR[13;speed 1000 rpm")
+    assert client.query(":ROT[CW;1.0;-1]") == f"#ERR[13;duration -1 s, {allowed}"
+    assert client.query(":ROT[CW;1.0;x]") == "#ERR[11;bad argument for :ROT]"

@@ -16,11 +16,12 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from drivers.mcr501 import MCR501, open_resource_manager
-from instrument.clock import VirtualClock
-from instrument.rheometer import StreamPoint
-from instrument.sliding import SlidingGeometry, speed_from_rpm
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from gelrig.drivers.mcr501 import MCR501, open_resource_manager
+from gelrig.instrument.contracts.bounded_motion import keep_moving
+from gelrig.instrument.contracts.rheometer import StreamPoint
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.physics.sliding import SlidingGeometry, speed_from_rpm
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 
 SPEEDS = (2.38e-5, 4.75e-5, 1.19e-4, 2.37e-4)
 DELTA_MAX = 0.78e-3
@@ -73,7 +74,7 @@ def record_pass(drv: MCR501, clock: VirtualClock, speed: float, sign: int) -> Pa
     end = clock.now() + 2 * (GEO.psi0 + MARGIN) / speed
     points: list[StreamPoint] = []
     while clock.now() < end:  # read before the instrument's stream buffer fills
-        clock.sleep(min(READ_PERIOD, end - clock.now()))
+        keep_moving(clock, drv, min(READ_PERIOD, end - clock.now()), drv.config.motion_bound)
         points += drv.read_stream()
     drv.stop()
     points += drv.read_stream()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from simulators.mcr501.lines import TOO_LONG, LineSplitter
+from gelrig.simulators.mcr501.lines import TOO_LONG, LineSplitter
 
 
 def test_cr_lf_and_cr_lf_end_lines_and_empty_lines_are_skipped() -> None:

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from simulators.mcr501 import Sample, ShearCell, SimConfig
+from gelrig.simulators.mcr501 import Sample, ShearCell, SimConfig
 
 DELTA = 0.78e-3
 

@@ -8,12 +8,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from drivers.mcr501 import MCR501
-from instrument.clock import VirtualClock
-from instrument.contact import Material
-from instrument.sliding import SlidingGeometry, shear_pass
-from simulators.mcr501 import DirectLink, MCR501Simulator, ShearCell, SimConfig
-from simulators.mcr501.motion import Lift, Spin
+from gelrig.drivers.mcr501 import MCR501
+from gelrig.instrument.contracts.bounded_motion import keep_moving
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.physics.contact import Material
+from gelrig.instrument.physics.sliding import SlidingGeometry, shear_pass
+from gelrig.simulators.mcr501 import DirectLink, MCR501Simulator, ShearCell, SimConfig
+from gelrig.simulators.mcr501.motion import Lift, Spin
 
 DELTA = 0.78e-3
 
@@ -156,7 +157,7 @@ def _free_stream(seed: int, offset: float = 2e-6) -> tuple[np.ndarray, np.ndarra
     drv.rotate(-1e-3)
     clock.sleep(1.0)
     drv.start_stream(0.01)
-    clock.sleep(20.0)
+    keep_moving(clock, drv, 20.0, drv.config.motion_bound)  # renewed as gelrig's waits do
     pts = drv.read_stream()
     drv.stop()
     return np.array([p.torque for p in pts]), np.array([p.normal_force for p in pts])

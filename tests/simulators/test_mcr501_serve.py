@@ -11,9 +11,9 @@ import time
 
 import pytest
 
-from drivers.mcr501 import open_resource_manager
-from instrument.errors import ConfigError
-from simulators.mcr501 import serve
+from gelrig.drivers.mcr501 import open_resource_manager
+from gelrig.instrument.core.errors import ConfigError
+from gelrig.simulators.mcr501 import serve
 
 
 def test_serve_in_paced_time_answers_pyvisa() -> None:

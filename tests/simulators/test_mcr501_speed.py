@@ -13,13 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.mcr501.codec import RequestError, decode_record, decode_record_row, decode_request
-from drivers.mcr501.commands import COMMANDS, ERROR, RECORD, Message
-from instrument.contact import _irregular, _step_weight
-from instrument.errors import DeviceErrorReply, FramingError
-from simulators.mcr501.instrument import MCR501Simulator
-from simulators.mcr501.motion import Lift, Spin
-from simulators.mcr501.physics import Sample, _sorted_unique
+from gelrig.drivers.mcr501.codec import (
+    RequestError,
+    decode_record,
+    decode_record_row,
+    decode_request,
+)
+from gelrig.drivers.mcr501.commands import COMMANDS, ERROR, RECORD, Message
+from gelrig.instrument.core.errors import DeviceErrorReply, FramingError
+from gelrig.instrument.physics.contact import _irregular, _step_weight
+from gelrig.simulators.mcr501.instrument import MCR501Simulator
+from gelrig.simulators.mcr501.motion import Lift, Spin
+from gelrig.simulators.mcr501.physics import Sample, _sorted_unique
 
 REFERENCE = Path(__file__).parent / "data" / "shear_rehearsal_reference.json"
 
@@ -113,7 +118,7 @@ def test_sorted_unique_is_np_unique() -> None:
 
 
 def plain_irregular(r: np.ndarray, x: np.ndarray, x_prev: float, h_prev: float) -> np.ndarray:
-    """instrument.contact._irregular as it was before its fast path."""
+    """gelrig.instrument.physics.contact._irregular as it was before its fast path."""
     dx = np.diff(x, prepend=x_prev)
     u = _step_weight(r) * dx
     out = np.empty(x.size)
@@ -148,7 +153,7 @@ def test_the_irregular_recursion_is_unchanged(scale: float) -> None:
 
 
 def test_stream_noise_drawn_per_batch_equals_per_point_draws() -> None:
-    from instrument.clock import VirtualClock
+    from gelrig.instrument.core.clock import VirtualClock
 
     sim = MCR501Simulator(VirtualClock())
     rng = np.random.default_rng(0)
@@ -173,11 +178,11 @@ def rehearsal_figures(**simulator: object) -> dict[str, object]:
     import copy
 
     from gelrig.factory import build_twin
-    from instrument.fields import read_toml
-    from protocols.events import EventBus, Samples
-    from protocols.rehearsal import describe, rehearse
-    from protocols.rigfile import default_rig, parse_rig
-    from protocols.spec import load_protocol, paper_protocol
+    from gelrig.instrument.core.fields import read_toml
+    from gelrig.protocols.events import EventBus, Samples
+    from gelrig.protocols.rehearsal import describe, rehearse
+    from gelrig.protocols.rigfile import default_rig, parse_rig
+    from gelrig.protocols.spec import load_protocol, paper_protocol
 
     table = copy.deepcopy(read_toml(default_rig("shear"), "rig file"))
     table["simulator"].update(simulator)
@@ -234,7 +239,7 @@ def _records(n: int, seed: int = 3) -> list[str]:
 
 @pytest.mark.parametrize("n", [1, 2, 17, 100])
 def test_a_batch_of_records_decodes_as_each_record_does(n: int) -> None:
-    from drivers.mcr501.codec import decode_record_rows
+    from gelrig.drivers.mcr501.codec import decode_record_rows
 
     lines = _records(n)
     assert decode_record_rows(lines) == [v for line in lines for v in decode_record_row(line)]
@@ -246,7 +251,7 @@ def test_a_batch_of_records_decodes_as_each_record_does(n: int) -> None:
     "#DATA[1;0]", ":MEAS[1;2;3;4;5]\n:MEAS[1;2;3;4;5]",
 ])
 def test_a_batch_with_a_bad_record_raises_what_that_record_raises(bad: str) -> None:
-    from drivers.mcr501.codec import decode_record_rows
+    from gelrig.drivers.mcr501.codec import decode_record_rows
 
     lines = _records(5)
     lines[3] = bad
@@ -255,7 +260,7 @@ def test_a_batch_with_a_bad_record_raises_what_that_record_raises(bad: str) -> N
 
 
 def test_literal_requests_and_the_stream_header_decode_as_the_generic_path() -> None:
-    from drivers.mcr501.codec import _decode_request, decode_reply, decode_stream_header
+    from gelrig.drivers.mcr501.codec import _decode_request, decode_reply, decode_stream_header
 
     for command in COMMANDS.values():
         if isinstance(command.request.shape, str):
@@ -274,10 +279,11 @@ def test_literal_requests_and_the_stream_header_decode_as_the_generic_path() -> 
 
 def test_the_driver_block_equals_the_per_point_conversion() -> None:
     """What read_stream computes on columns is what it computed one point at a time."""
-    from drivers.mcr501 import MCR501
-    from instrument.clock import VirtualClock
-    from instrument.rheometer import StreamBlock
-    from simulators.mcr501 import DirectLink, SimConfig
+    from gelrig.drivers.mcr501 import MCR501
+    from gelrig.instrument.contracts.bounded_motion import keep_moving
+    from gelrig.instrument.contracts.rheometer import StreamBlock
+    from gelrig.instrument.core.clock import VirtualClock
+    from gelrig.simulators.mcr501 import DirectLink, SimConfig
 
     clock = VirtualClock()
     sim = MCR501Simulator(clock, SimConfig(start_referenced=True))
@@ -287,7 +293,7 @@ def test_the_driver_block_equals_the_per_point_conversion() -> None:
     t0 = clock.now()
     drv.start_stream(0.01)
     drv.rotate(1e-3)
-    clock.sleep(3.3)  # about 330 points: four #DATA batches
+    keep_moving(clock, drv, 3.3, drv.config.motion_bound)  # ~330 points: four #DATA batches
     sent: list[str] = []
     real = link.read_lines
     link.read_lines = lambda n: sent.extend(real(n)) or sent[-n:]  # type: ignore[method-assign]

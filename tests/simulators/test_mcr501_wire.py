@@ -12,9 +12,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivers.mcr501.commands import COMMANDS
-from instrument.clock import VirtualClock
-from simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
+from gelrig.drivers.mcr501.commands import COMMANDS
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.simulators.mcr501 import MCR501Simulator, SimConfig, SimulatorServer
 
 
 class Wire:
@@ -61,6 +61,7 @@ LITERAL = {
     "set_gap": (b":GAPZ[]\r\n:GAP[9.5000]\r\n", rb":GAP\[OK\]"),
     "read_gap": (b":GAP[?]\r\n", rb":GAP\[10\.0000\]"),
     "rotate": (b":ROT[CCW;8.418000e-03]\r\n", rb":ROT\[OK\]"),
+    "rotate_for": (b":ROT[CW;8.418000e-03;1.5]\r\n", rb":ROT\[OK\]"),
     "stop": (b":STOP[]\r\n", rb":STOP\[OK\]"),
     "hold": (b":HOLD[]\r\n", rb":HOLD\[OK\]"),
     "read_angle": (b":ANG[?]\r\n", rb":ANG\[0\.0000000\]"),

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from instrument.clock import VirtualClock
-from instrument.contact import Material, hertz_prefactor
-from instrument.loadcell import LoadCellChain
-from instrument.plate_contact import PlateSphereContact
-from simulators.usb6001.device import (
+from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.physics.contact import Material, hertz_prefactor
+from gelrig.instrument.physics.plate_contact import PlateSphereContact
+from gelrig.simulators.usb6001.device import (
     CONTINUOUS,
     DIFF,
     FINITE,
@@ -20,7 +20,7 @@ from simulators.usb6001.device import (
     SimulatedUsb6001,
     default_buffer_size,
 )
-from simulators.usb6001.signals import ConstantSignal, LoadCellSignal, SampleCounterSignal
+from gelrig.simulators.usb6001.signals import ConstantSignal, LoadCellSignal, SampleCounterSignal
 
 LSB = DeviceSpec().lsb
 

@@ -19,15 +19,15 @@ import pytest
 from nidaqmx.constants import AcquisitionType, TerminalConfiguration
 from nidaqmx.stream_readers import AnalogMultiChannelReader, AnalogSingleChannelReader
 
-from instrument.clock import Clock, PacedClock, VirtualClock
-from simulators.usb6001 import (
+from gelrig.instrument.core.clock import Clock, PacedClock, VirtualClock
+from gelrig.simulators.usb6001 import (
     DeviceSpec,
     RunningServer,
     SampleCounterSignal,
     SimulatedUsb6001,
     start_server,
 )
-from simulators.usb6001 import serve as serve_module
+from gelrig.simulators.usb6001 import serve as serve_module
 
 LSB = DeviceSpec().lsb
 ROOT = Path(__file__).resolve().parents[2]
@@ -168,9 +168,9 @@ def test_wrong_device_and_unsupported_calls(rig: Rig) -> None:
             add_chan(task, "Dev7/ai0")
         assert info.value.error_code == -200220
         with pytest.raises(nidaqmx.errors.DaqError) as unsupported:
-            task.ao_channels.add_ao_voltage_chan("Dev1/ao0")
-        assert unsupported.value.error_code == -209876
-        assert "does not support DAQmxCreateAOVoltageChan" in str(unsupported.value)
+            task.ai_channels.add_ai_accel_chan("Dev1/ai0")
+        assert unsupported.value.error_code == -200431  # no IEPE input on a 6001
+        assert "DAQmxCreateAIAccelChan" in str(unsupported.value)
 
 
 def test_paced_time_samples_accrue_with_the_clock() -> None:

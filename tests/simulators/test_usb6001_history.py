@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simulators.usb6001.device import SimTask, _keep_history
+from gelrig.simulators.usb6001.device import SimTask, _keep_history
 
 
 @pytest.mark.parametrize("keep", [1, 7, 100])

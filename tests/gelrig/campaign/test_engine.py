@@ -46,8 +46,14 @@ def test_four_members_on_a_local_cluster_with_a_failing_truth(tmp_path):
     html = page.read_text()
     assert "coverage.png" in html and "bias_spread.png" in html and "travel limits" in html
     assert (page.parent / "variants.csv").exists()
-    assert coverage(list(rows.values()), "G_e").n == 2
-    assert summary_lines(list(rows.values()))[0] == "4 member(s): 2 ok, 0 incomplete, 2 failed"
+    # a 60 s hold resolves no term: its members are no result for coverage and bias
+    assert [r["resolved"] for r in ok] == [False, False]
+    cov = coverage(list(rows.values()), "G_e")
+    assert (cov.n, cov.unresolved) == (0, 2)
+    lines = summary_lines(list(rows.values()))
+    assert lines[0] == ("4 member(s): 2 ok, 0 incomplete, 2 failed, 2 ok but not resolved "
+                        "(left out of bias and coverage)")
+    assert "  G_e          no resolved member (2 not resolved)" in lines
 
 
 def test_members_run_on_an_existing_scheduler(tmp_path):

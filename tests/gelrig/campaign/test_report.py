@@ -97,16 +97,36 @@ def test_a_hold_fit_is_compared_by_its_ramp_corrected_amplitudes():
     from types import SimpleNamespace
 
     from gelrig.campaign.member import Z95, fitted_columns
-    from instrument.analysis import RelaxationFit, RelaxationTerm
+    from gelrig.instrument.analysis.relaxation import RelaxationFit, RelaxationTerm
 
     fit = RelaxationFit(7000.0, (RelaxationTerm(600.0, 1400.0),), 0.0, 1.0,
                         {"G_e": 2.0, "G_1": 6.0, "tau_1": 30.0}, 1000,
                         extra={"relax_ramp_corrected": [{"G": 630.0, "tau": 1400.0}]},
                         terms_resolved=1)
-    result = SimpleNamespace(hold_fits={1: [fit]}, holds={1: SimpleNamespace(duration=600.0)},
+    result = SimpleNamespace(hold_fits={1: [fit]},
+                             holds={1: SimpleNamespace(duration=600.0, overlap=None)},
                              model_fits={}, ladders={})
     out = fitted_columns(result)
     assert out["fit.G_1"] == 630.0 and out["se.G_1"] == pytest.approx(6.3)
     assert out["hi.G_1"] == pytest.approx(630.0 + Z95 * 6.3)
     assert (out["fit.tau_1"], out["se.tau_1"]) == (1400.0, 30.0)
     assert (out["fit.G_e"], out["se.G_e"]) == (7000.0, 2.0)
+    assert "fit.first_touch" not in out  # no ramp refit: no first touch to compare
+
+
+def test_members_whose_fit_is_not_resolved_are_left_out_and_counted():
+    """A member whose hold fit the data do not resolve (``resolved`` false) is no result:
+    coverage, bias and the z-scores leave it out, and the summary says how many."""
+    from gelrig.campaign.report import summary_lines, unresolved
+
+    rows = [_row(0, 2000, 1900, 2100), _row(1, 2050, 2010, 2090),
+            {**_row(2, 9000, 100, 200), "resolved": False, "not_resolved": "BIC"}]
+    c = coverage(rows, "tau_1")
+    assert (c.hits, c.n, c.unresolved) == (1, 2, 1)
+    assert unresolved(rows, "tau_1") == 1
+    assert relative_errors(rows, "tau_1").size == 2 and z_scores(rows, "tau_1").size == 2
+    lines = summary_lines(rows)
+    assert "1 ok but not resolved" in lines[0]
+    assert "1 member(s) not resolved, left out" in lines[1]
+    table, _ = variant_rows(rows)
+    assert table[0]["not_resolved"] == 1

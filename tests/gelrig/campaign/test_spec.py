@@ -8,7 +8,7 @@ import pytest
 
 from gelrig.campaign.spec import load_campaign, parse_campaign
 from gelrig.cli import main
-from instrument.errors import ConfigError
+from gelrig.instrument.core.errors import ConfigError
 from tests.gelrig.campaign import tiny
 
 
@@ -62,6 +62,8 @@ def test_a_list_field_takes_a_list_of_lists_as_its_grid(tmp_path):
     ({"campaign": {"protocol": "study.py"}}, "[campaign] protocol = \"study.py\": no such"),
     ({"campaign": {"replicates": 0}}, "[campaign] replicates = 0: allowed"),
     ({"analysis": {"unloading": "glue"}}, "[analysis] unloading = \"glue\": allowed"),
+    ({"analysis": {"anisotropic": "yes"}}, "[analysis] anisotropic = \"yes\": allowed: true or"),
+    ({"analysis": {"terms": 3}}, "[analysis] terms = 3: allowed an integer in [1, 2]"),
     ({"extra": {}}, "[extra]"),
 ])
 def test_bad_values_name_file_field_value_and_what_is_allowed(tmp_path, edit, expected):
@@ -95,7 +97,7 @@ import gelrig
 @gelrig.protocol(rig="compression", name="short hold")
 def short_hold(run, hold="60 s", strain=0.06):
     run.step("compression_contact_search", start="3 mm", confirm=1)
-    run.step("ramp_hold", hold=hold, strain=strain, rate="100 Hz", terms=1)
+    run.step("ramp_hold", diameter="18.63 mm", hold=hold, strain=strain, rate="100 Hz", terms=1)
 """
 
 
@@ -136,7 +138,7 @@ def test_analysis_options_left_at_their_defaults_do_not_change_the_ids(tmp_path)
 
 def test_a_truth_drawn_from_a_distribution_per_member(tmp_path):
     from gelrig.campaign.member import run_member
-    from protocols.rigfile import parse_rig
+    from gelrig.protocols.rigfile import parse_rig
 
     path = tiny.write(tmp_path, tiny.COMPRESSION, replicates=4,
                       simulator='g_e = { uniform = ["6 kPa", "8 kPa"] }\n'
@@ -173,3 +175,53 @@ def test_a_bad_distribution_is_one_line(tmp_path, value, expected):
         load_campaign(path)
     message = str(info.value)
     assert "[simulator] g_e" in message and expected in message and "\n" not in message
+
+
+def test_the_analysis_table_is_the_ladder_fits_declarations():
+    """[analysis] shares the fit's fields (one declaration, one default)."""
+    from gelrig.campaign.spec import Analysis
+    from gelrig.instrument.analysis.fit_setup import FitSetup
+
+    fit, analysis = FitSetup.specs(), Analysis.specs()
+    for name in ("terms", "anisotropic", "fit_geometry"):
+        assert analysis[name] is fit[name]
+    assert analysis["unloading"].choices == (*fit["unloading"].choices, "truth")
+    default = Analysis()
+    assert (default.terms, default.anisotropic, default.fit_geometry) == (
+        FitSetup().terms, FitSetup().anisotropic, FitSetup().fit_geometry)
+    assert type(Analysis.from_table({"terms": 2}).terms) is int
+
+
+def test_a_grid_beyond_the_member_bound_is_refused_by_arithmetic(tmp_path, capsys):
+    """10^11 members (was: 5.3 GB and no output): refused from the axes' lengths alone,
+    before any member or grid value is made."""
+    import time
+
+    axis = "[" + ", ".join(f'"{k} mN"' for k in range(1, 11)) + "]"
+    path = tmp_path / "huge.toml"
+    path.write_text(tiny.COMPRESSION.format(replicates=10, simulator=f"noise = {axis}")
+                    .replace('"step[1].hold" = "60 s"', "\n".join(
+                        f'"step[1].{k}" = [{", ".join(str(v / 10) for v in range(1, 11))}]'
+                        for k in ("strain", "strain_rate", "terms", "approach", "retract",
+                                  "tare_time", "until", "min_hold", "diameter"))))
+    start = time.monotonic()
+    assert main(["campaign", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert time.monotonic() - start < 30
+    assert len(err.splitlines()) == 1, err
+    assert f'{path}: members = "100,000,000,000": at most 100,000 per campaign' in err
+    assert "10 ([simulator] noise) x 10 ([params] step[1].strain)" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_grid_whose_largest_member_is_beyond_the_run_bounds_is_refused(tmp_path, capsys):
+    path = tmp_path / "long.toml"
+    path.write_text(tiny.COMPRESSION.format(replicates=2, simulator="")
+                    .replace('"step[1].hold" = "60 s"', '"step[1].hold" = ["60 s", "604800 s"]')
+                    .replace('"step[1].rate" = "100 Hz"',
+                             '"step[1].rate" = ["100 Hz", "20000 Hz"]'))
+    assert main(["campaign", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f'{path}: [params] samples per run = "12,09' in err
+    assert "step[1] (ramp and hold) records" in err and "(the grid's largest member)" in err

@@ -1,0 +1,19 @@
+﻿# Vendored unmodified from https://github.com/ni/nidaqmx-python, examples/analog_in/thrmcpl_sample.py
+# (commit cbba502321e6a51fe9b10e9c907c9032833e9e5e). Copyright (c) 2022, National
+# Instruments Corp.; MIT licence, see LICENSE in this folder. Only these lines are added.
+"""Example of analog input temperature acquisition.
+
+This example demonstrates how to acquire thermocouple measurement using
+software timing.
+"""
+
+import nidaqmx
+from nidaqmx.constants import ThermocoupleType, TemperatureUnits
+
+with nidaqmx.Task() as task:
+    task.ai_channels.add_ai_thrmcpl_chan(
+        "Dev1/ai0", units=TemperatureUnits.DEG_C, thermocouple_type=ThermocoupleType.K
+    )
+
+    data = task.read()
+    print(f"Acquired data: {data:f}")

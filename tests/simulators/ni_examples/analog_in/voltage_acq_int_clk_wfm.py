@@ -1,0 +1,22 @@
+# Vendored unmodified from https://github.com/ni/nidaqmx-python, examples/analog_in/voltage_acq_int_clk_wfm.py
+# (commit cbba502321e6a51fe9b10e9c907c9032833e9e5e). Copyright (c) 2022, National
+# Instruments Corp.; MIT licence, see LICENSE in this folder. Only these lines are added.
+"""Example of analog input voltage waveform acquisition.
+
+This example demonstrates how to acquire a finite amount
+of data using the DAQ device's internal clock.
+"""
+
+import nidaqmx
+from nidaqmx.constants import AcquisitionType
+
+with nidaqmx.Task() as task:
+    task.ai_channels.add_ai_voltage_chan("Dev1/ai0")
+    task.timing.cfg_samp_clk_timing(1000.0, sample_mode=AcquisitionType.FINITE, samps_per_chan=50)
+
+    waveform = task.read_waveform()
+    print(f"Acquired data: {waveform.scaled_data}")
+    print(f"Channel name: {waveform.channel_name}")
+    print(f"Units: {waveform.units}")
+    print(f"t0: {waveform.timing.start_time}")
+    print(f"dt: {waveform.timing.sample_interval}")
