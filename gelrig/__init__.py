@@ -6,8 +6,9 @@ surface (docs/scripting.md walks through them), each with its docstring. They ar
 first use, so ``import gelrig`` (and ``gelrig --help``) stays fast. Nothing inside gelrig's
 own packages imports this package.
 
-- run things: :func:`open_rig`, :class:`RigSession`, :class:`RunResult`, :func:`rehearse`,
-  :func:`analyze`, :func:`load_protocol`, :func:`script_main`
+- run things: :func:`open_rig`, :class:`RigSession`, :class:`RunResult`,
+  :class:`InteractiveRun`, :func:`rehearse`, :func:`analyze`, :func:`load_protocol`,
+  :func:`script_main`
 - write scripts: :func:`protocol`, :class:`Run`, :class:`Script`
 - write step kinds: :func:`register_step`, :class:`StepDefinition`, :class:`StepParams`,
   :class:`StepResult`, :class:`StepPlan`, :class:`PlanCheck`, :class:`StepContext`,
@@ -21,7 +22,8 @@ own packages imports this package.
 - results of the built-in steps: :class:`SearchResult`, :class:`RampHoldResult`,
   :class:`ShearSearchResult`, :class:`LadderResult`
 - events: :class:`Event`, :class:`StepStarted`, :class:`Samples`, :class:`Progress`,
-  :class:`FitUpdate`, :class:`StepFinished`, :class:`Finished`, :class:`RunState`
+  :class:`FitUpdate`, :class:`Note`, :class:`StepFinished`, :class:`Finished`,
+  :class:`RunState`
 - clocks: :class:`VirtualClock`, :class:`RealClock`, :class:`PacedClock`
 - errors: :class:`GelrigError`, :class:`ConfigError`, :class:`LimitError`, :class:`Refused`,
   :class:`InterlockTripped`, :class:`InstrumentError`, :class:`NotHomed`, :class:`RunEnded`,
@@ -37,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 _SURFACE: dict[str, str] = {
     "open_rig": "gelrig.api", "RigSession": "gelrig.api", "RunResult": "gelrig.api",
     "rehearse": "gelrig.api", "analyze": "gelrig.api", "script_main": "gelrig.api",
+    "InteractiveRun": "gelrig.interactive",
     "load_protocol": "gelrig.api",
     "protocol": "gelrig.protocols.script", "Run": "gelrig.protocols.script",
     "Script": "gelrig.protocols.script", "Sample": "gelrig.protocols.sample",
@@ -62,6 +65,7 @@ _SURFACE: dict[str, str] = {
     "Event": "gelrig.protocols.events", "StepStarted": "gelrig.protocols.events",
     "Samples": "gelrig.protocols.events", "Progress": "gelrig.protocols.events",
     "FitUpdate": "gelrig.protocols.events", "StepFinished": "gelrig.protocols.events",
+    "Note": "gelrig.protocols.events",
     "Finished": "gelrig.protocols.events", "RunState": "gelrig.protocols.events",
     "VirtualClock": "gelrig.instrument.core.clock", "RealClock": "gelrig.instrument.core.clock",
     "PacedClock": "gelrig.instrument.core.clock",
@@ -77,8 +81,9 @@ __all__ = [
     "ArmRecorder", "Choice", "CompressionLimits", "CompressionRig", "ConfigError", "Event",
     "Field", "FieldList", "Finished", "FirstTouchUnknown", "FitUpdate", "ForceRecorder",
     "ForceSensor",
-    "GelrigError", "InstrumentError", "InterlockTripped", "LadderResult", "LimitError",
-    "NotHomed", "PacedClock", "PlanCheck", "Progress", "RampHoldResult", "RealClock",
+    "GelrigError", "InstrumentError", "InteractiveRun", "InterlockTripped", "LadderResult",
+    "LimitError", "NotHomed", "Note", "PacedClock", "PlanCheck", "Progress", "RampHoldResult",
+    "RealClock",
     "Refused", "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState",
     "Sample", "Samples", "Script",
     "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "Stage", "StepContext",
@@ -113,6 +118,7 @@ if TYPE_CHECKING:
         Refused,
     )
     from gelrig.instrument.core.fields import Choice, Field, FieldList, Where, param
+    from gelrig.interactive import InteractiveRun
     from gelrig.protocols.caps import (
         arm_speed_error,
         gap_error,
@@ -124,6 +130,7 @@ if TYPE_CHECKING:
         Event,
         Finished,
         FitUpdate,
+        Note,
         Progress,
         RunState,
         Samples,

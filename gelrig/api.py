@@ -24,10 +24,10 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gelrig.instrument.core.clock import Clock
-from gelrig.instrument.core.errors import ConfigError, InterlockTripped, Refused
+from gelrig.instrument.core.errors import ConfigError, GelrigError, InterlockTripped, Refused
 from gelrig.instrument.core.store import RunDirectory, check_out_dir
 from gelrig.protocols.control import RunControl
 from gelrig.protocols.events import Event, EventBus
@@ -39,6 +39,9 @@ from gelrig.protocols.rig import CompressionRig, Rig, ShearRig
 from gelrig.protocols.rigfile import RigSpec
 from gelrig.protocols.safestop import SafeState
 from gelrig.protocols.sample import SampleRef
+
+if TYPE_CHECKING:
+    from gelrig.interactive import InteractiveRun
 
 log = logging.getLogger(__name__)
 
@@ -57,10 +60,23 @@ class RunResult:
     path: Path
     steps: list[dict[str, Any]] = field(default_factory=list)
     safe_state: dict[str, Any] | None = None
+    #: the protocol's (or script's, or interactive run's) name
+    name: str = ""
 
     @property
     def ok(self) -> bool:
         return self.state == "completed"
+
+    def __repr__(self) -> str:
+        """One line: state, name, steps, where; why, when it ended short (the step records
+        stay in ``steps``)."""
+        done = sum(1 for s in self.steps if s.get("status") == "completed")
+        count = (f"{len(self.steps)} step{'' if len(self.steps) == 1 else 's'}"
+                 if done == len(self.steps) else f"{done} of {len(self.steps)} steps completed")
+        why = ""
+        if not self.ok and self.reason:
+            why = f": {self.reason if len(self.reason) <= 120 else self.reason[:117] + '...'}"
+        return f"<RunResult {self.state} {self.name!r} {count}, {self.path}{why}>"
 
     def results(self, name: str) -> dict[str, Any]:
         """The results of the (last) step called ``name``."""
@@ -84,11 +100,30 @@ class RigSession:
         self.rig: Rig = build_rig(spec, clock)
         self.control = RunControl()
         self._closed = False
+        #: the interactive run open on this rig, if any (one at a time)
+        self._interactive: InteractiveRun | None = None
 
     @property
     def kind(self) -> str:
         """``"compression"`` or ``"shear"``."""
         return self.rig.kind
+
+    def __repr__(self) -> str:
+        where = "simulated" if self.spec.simulated else "real instruments"
+        state = "closed" if self._closed else (
+            f"interactive run open in {self._interactive.dir}" if self._interactive
+            else "open")
+        return (f"<RigSession {self.kind} rig {self.spec.name!r} ({where}, {self.clock_spec} "
+                f"clock), {state}>")
+
+    def _idle(self) -> None:
+        """Refuse what would use the rig beside an open interactive run (its steps own it)."""
+        if self._closed:
+            raise GelrigError(f"the rig session {self.spec.source} is closed")
+        if self._interactive is not None:
+            raise GelrigError(f"an interactive run is open in {self._interactive.dir}; add "
+                              "its steps with run.step(...), or end it first (leave its "
+                              "with block, or run.end())")
 
     # -- runs ------------------------------------------------------------------------------
     def run(self, protocol: Procedure | str | os.PathLike[str], out: str | os.PathLike[str]
@@ -126,6 +161,7 @@ class RigSession:
             preflight,
         )
 
+        self._idle()
         procedure = resolve_procedure(protocol, params, sample=sample)
         self._check_kind(procedure)
         path = Path(out) if out is not None else default_run_dir(procedure)
@@ -149,6 +185,7 @@ class RigSession:
         :class:`~gelrig.instrument.core.errors.Refused`; the run folder stays as it was."""
         from gelrig.protocols.host import preflight, prepare_resume, resumable
 
+        self._idle()
         run = RunDirectory(os.fspath(run_dir))
         if run.read_metadata().get("status") == "completed":
             return _result(run)
@@ -167,6 +204,33 @@ class RigSession:
         if problem:
             raise Refused(f"{problem}; refused before anything moves", procedure.source)
         return result
+
+    def run_interactive(self, name: str = "interactive", out: str | os.PathLike[str]
+                        | None = None, *, sample: SampleRef | None = None, show: bool = True,
+                        subscribers: Iterable[Callable[[Event], None]] = (),
+                        resume: str | os.PathLike[str] | None = None) -> InteractiveRun:
+        """Open one run that steps are added to as you go, from a REPL or notebook: a
+        :class:`~gelrig.interactive.InteractiveRun` (use it as a context manager, or call
+        its ``end()``). Each ``run.step(kind, name=..., **params)`` runs at once through the
+        same runner as a script's step and appends to the one run directory ``out``
+        (default ``runs/<time>-<rig>``); ``sample`` and ``subscribers`` as for :meth:`run`;
+        ``show`` prints each step's progress and ``run.log`` lines. ``resume``: an
+        interactive run recorded before (also one that completed, or one a killed kernel
+        left), continued after its completed steps, whose results later steps see."""
+        from gelrig.interactive import open_interactive, resume_interactive
+
+        self._idle()
+        if resume is not None:
+            self._interactive = resume_interactive(self, resume, show, subscribers)
+        else:
+            self._interactive = open_interactive(self, name, out, sample, show, subscribers)
+        return self._interactive
+
+    def resume_interactive(self, run_dir: str | os.PathLike[str], *, show: bool = True,
+                           subscribers: Iterable[Callable[[Event], None]] = ()
+                           ) -> InteractiveRun:
+        """``run_interactive(resume=run_dir)``: an interactive run continued."""
+        return self.run_interactive(resume=run_dir, show=show, subscribers=subscribers)
 
     def _check_kind(self, procedure: Procedure) -> None:
         if procedure.rig != self.kind:
@@ -200,6 +264,7 @@ class RigSession:
     # -- manual motions, under the interlocks ------------------------------------------------
     def home(self) -> Guarded:
         """Home the stage (compression rig) and wait until it is done."""
+        self._idle()
         rig = self._compression()
         return self._guard("home", rig.home, toward=False)
 
@@ -211,6 +276,7 @@ class RigSession:
         the sample before a contact search (first touch unknown: the overlap limit is not
         armed) it is refused (:class:`FirstTouchUnknown`) unless ``confirm``, and then goes
         at most the safe approach speed (:data:`APPROACH_SPEED`)."""
+        self._idle()
         rig = self._compression()
         if (to is None) == (by is None):
             raise ConfigError("move_plate", f"to={to}, by={by}", "give exactly one of to, by")
@@ -220,6 +286,7 @@ class RigSession:
 
     def set_gap(self, gap: float) -> Guarded:
         """Move the rheometer's lift to ``gap`` (m), watched under the interlocks."""
+        self._idle()
         rig = self._shear()
         return self._guard("set the gap", lambda: rig.set_gap(gap),
                            toward=gap < rig.rheometer.gap())
@@ -260,9 +327,12 @@ class RigSession:
                             self.readings)
 
     def close(self) -> None:
-        """Stop all motion and release the instruments (and their simulators)."""
+        """Stop all motion and release the instruments (and their simulators); an
+        interactive run still open is ended first (completed)."""
         if self._closed:
             return
+        if self._interactive is not None:
+            self._interactive.end()
         self._closed = True
         from gelrig.protocols.host import closing_rig
 
@@ -275,6 +345,8 @@ class RigSession:
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         try:
+            if self._interactive is not None:  # left open: ended as its own block would be
+                self._interactive.__exit__(kind, exc, tb)
             if exc is not None:  # an error or Ctrl-C in the with block: stop, make safe
                 safe = self.safe_stop(f"leaving the rig session: {type(exc).__name__}")
                 log.log(logging.INFO if safe.verified else logging.ERROR, "safe stop: %s",
@@ -304,8 +376,12 @@ class RigSession:
 
 def _result(run: RunDirectory) -> RunResult:
     meta = run.read_metadata()
+    table = meta.get("protocol")
+    head = table.get("protocol") if isinstance(table, dict) else None
+    name = head.get("name") if isinstance(head, dict) else None
     return RunResult(str(meta.get("status", "?")), str(meta.get("reason") or ""), run.path,
-                     list(meta.get("steps", [])), meta.get("safe_state"))
+                     list(meta.get("steps", [])), meta.get("safe_state"),
+                     name if isinstance(name, str) else "")
 
 
 def open_rig(rig: str | os.PathLike[str] | RigSpec = "compression",

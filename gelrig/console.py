@@ -22,6 +22,7 @@ from gelrig.protocols.events import (
     Fault,
     FitUpdate,
     InterlockTrip,
+    Note,
     SafeStopped,
     StateChanged,
     StepFinished,
@@ -149,6 +150,8 @@ class ConsoleView:
                 self.progress.update(self._task, completed=1.0 if done else None, eta="-",
                                      live=event.status)
             self._task = None
+        elif isinstance(event, Note):  # printed above the live bars, which stay intact
+            self.console.print(note_line(event), soft_wrap=True)
         elif isinstance(event, StateChanged) and event.reason and not event.new.finished:
             self.console.print(Text(f"[{lab_time(event.t)}] {event.new.value}: {event.reason}"),
                                soft_wrap=True)
@@ -169,6 +172,11 @@ class ConsoleView:
         where = f"; details: {self.log_path}" if self.log_path else ""
         return Text.assemble(head, "; ", (safe, "" if event.state.verified else "bold red"),
                              where)
+
+
+def note_line(event: Note) -> Text:
+    """A script's ``run.log`` line as people see it: ``[lab time] text``, as written."""
+    return Text(f"[{lab_time(event.t)}] {event.text}")
 
 
 def fault_headline(event: Fault) -> Text:

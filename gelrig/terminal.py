@@ -45,6 +45,8 @@ class Interrupts:
         self.say = say
         self.presses = 0
         self.pause_first = pause_first
+        #: the console view the presses are told in (None: not shown)
+        self.view: ConsoleView | None = None
 
     @property
     def urged(self) -> bool:
@@ -109,6 +111,20 @@ def run_in_terminal(host: RunHost, show: bool = True,
     ``ctrl_c``: "pause" (the CLI: the first Ctrl-C pauses, the second aborts) or "raise"
     (the scripting API: the first aborts, and once the run has ended, with motion stopped
     and the end recorded, KeyboardInterrupt is raised here)."""
+    with terminal_face(host, show, ctrl_c) as interrupts:
+        host.start()
+        watch(host, host.wait, interrupts, exit)
+    complete_pending(host, show)
+    state = host.outcome()
+    if ctrl_c == "raise" and interrupts.presses:
+        raise KeyboardInterrupt
+    return state
+
+
+@contextlib.contextmanager
+def terminal_face(host: RunHost, show: bool, ctrl_c: str = "pause") -> Iterator[Interrupts]:
+    """While it lasts: the console view of ``host``'s events (``show``) and Ctrl-C mapped
+    onto its control (``ctrl_c`` as for :func:`run_in_terminal`); yields the presses."""
     if ctrl_c not in ("pause", "raise"):
         raise ValueError(f"ctrl_c = {ctrl_c!r}: allowed pause, raise")
     view = ConsoleView(log_path=host.log_path) if show else None
@@ -119,21 +135,23 @@ def run_in_terminal(host: RunHost, show: bool = True,
             stack.callback(host.bus.subscribe(view))
         interrupts = stack.enter_context(interrupt_handling(host.control, say,
                                                             pause_first=ctrl_c == "pause"))
-        host.start()
-        while not host.wait(0.1):
-            if host.stuck(urged=interrupts.urged):
-                if view is not None:
-                    view.close()  # from now on this thread tells the end, in one line
-                host.end_from_outside()
-                print(host.outside_line(), file=sys.stderr, flush=True)
-                exit(1 if host.outside_status == "failed" else 3)
-                host.wait(1.0)  # ``exit`` returned (a test, the API): let the thread be
-                break
-    complete_pending(host, show)
-    state = host.outcome()
-    if ctrl_c == "raise" and interrupts.presses:
-        raise KeyboardInterrupt
-    return state
+        interrupts.view = view
+        yield interrupts
+
+
+def watch(host: RunHost, done: Callable[[float], bool], interrupts: Interrupts,
+          exit: Callable[[int], object] = os._exit) -> None:
+    """Wait until ``done(timeout)`` says so or the run has ended; a run stuck after an abort
+    is ended from outside (its one line printed, then ``exit``)."""
+    while not done(0.1) and not host.ended:
+        if host.stuck(urged=interrupts.urged):
+            if interrupts.view is not None:
+                interrupts.view.close()  # from now on this thread tells the end, in one line
+            host.end_from_outside()
+            print(host.outside_line(), file=sys.stderr, flush=True)
+            exit(1 if host.outside_status == "failed" else 3)
+            host.wait(1.0)  # ``exit`` returned (a test, the API): let the thread be
+            break
 
 
 def complete_pending(host: RunHost, show: bool = True) -> None:

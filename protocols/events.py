@@ -150,6 +150,14 @@ class SafeStopped(Event):
 
 
 @dataclass(frozen=True)
+class Note(Event):
+    """A line a procedure wrote for people (``run.log``): shown by the console view, kept
+    in the run's log."""
+
+    text: str
+
+
+@dataclass(frozen=True)
 class Finished(Event):
     """The run is over: completed, aborted or failed, and why. Always the last event."""
 

@@ -22,6 +22,7 @@ from gelrig.protocols.events import (
     EventBus,
     Fault,
     Finished,
+    Note,
     RunState,
     SafeStopped,
     StateChanged,
@@ -199,6 +200,12 @@ class Runner:
         """A point between steps where a requested pause takes effect (nothing moves)."""
         StepContext[Any](self.rig, self.bus, self.control, self.next_index, self.outcomes,
                          self.watched, self.rehearsal).checkpoint()
+
+    def note(self, text: str) -> None:
+        """A line for people (a script's ``run.log``): in the run's log (logger
+        ``gelrig.script``) and on the event stream, where a console view shows it."""
+        logging.getLogger("gelrig.script").info("%s", text)
+        self.bus.publish(Note(self.rig.clock.now(), text))
 
     def step(self, step: Step) -> StepResult:
         """Run ``step`` as the next step of the run and return its typed result; a step a

@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import inspect
-import logging
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -45,8 +44,6 @@ from gelrig.protocols.spec import (
 )
 from gelrig.protocols.steps import KINDS, import_file
 from gelrig.protocols.steps.base import StepDefinition, StepResult
-
-log = logging.getLogger("gelrig.script")
 
 Body = Callable[["Run"], None]
 
@@ -201,8 +198,9 @@ class Run:
         self._sink.checkpoint()
 
     def log(self, message: str) -> None:
-        """A line in the run's log (RUN_DIR/gelrig.log)."""
-        log.info("%s", message)
+        """A line in the run's log (RUN_DIR/gelrig.log), also shown on the console when the
+        run shows its progress (``gelrig run``, ``show=True``)."""
+        self._sink.note(str(message))
 
 
 def _step_name(kind: object, name: object) -> str:
@@ -274,7 +272,12 @@ def script_from_table(table: Mapping[str, Any], source: str, run_dir: Path
 def procedure_from_table(table: Mapping[str, Any], source: str,
                          run_dir: Path) -> tuple[Procedure, list[str]]:
     """What run.json's ``protocol`` table holds, ready to run again (resume): a protocol
-    file's steps, or the script it names; and notes for people (a script that changed)."""
+    file's steps, or the script it names; and notes for people (a script that changed). An
+    interactive run's table is refused in one line saying how to continue it from Python."""
+    from gelrig.protocols.interactive import ResumeFromPython, is_interactive
+
+    if is_interactive(table):
+        raise ResumeFromPython(str(run_dir))
     head = table.get("protocol") if isinstance(table, Mapping) else None
     if isinstance(head, Mapping) and "script" in head:
         return script_from_table(table, source, run_dir)

@@ -65,6 +65,10 @@ class StepSink(Protocol):
 
     def checkpoint(self) -> None: ...
 
+    def note(self, text: str) -> None:
+        """A line for people: the run's log, and the console when one shows the run."""
+        ...
+
     def refuse(self, name: str, problem: str) -> NoReturn:
         """End the run: the next step (``name``) is not valid and is refused before it
         moves (``problem``: the one line saying why)."""

@@ -46,9 +46,24 @@ class StepParams(Config):
     section: ClassVar[str] = "step"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class StepResult:
-    """Base of step results: stored in run.json as a table, read back typed on resume."""
+    """Base of step results: stored in run.json as a table, read back typed on resume. Its
+    ``repr`` is one line (numbers short, lists and tables counted, not dumped); a subclass
+    keeps it with ``@dataclass(frozen=True, repr=False)``, or writes its own."""
+
+    def __repr__(self) -> str:
+        parts = []
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, list | tuple | dict):
+                parts.append(f"{f.name} [{len(value)}]")
+            elif isinstance(value, float):
+                parts.append(f"{f.name} {value:.4g}")
+            else:
+                text = repr(value)
+                parts.append(f"{f.name} {text if len(text) <= 40 else text[:37] + '...'}")
+        return brief(type(self).__name__, *parts)
 
     def as_dict(self) -> dict[str, Any]:
         """The result as run.json stores it (nested dataclasses become tables)."""
@@ -134,6 +149,18 @@ class StepDefinition(Generic[RigT, ParamsT, ResultT]):
         moves: commanded speeds, positions or overlaps beyond the rig's caps, or an earlier
         result it needs (``earlier``: the result types of the steps before it). [] if none."""
         return []
+
+
+def brief(name: str, *parts: str) -> str:
+    """A result's one-line repr: ``<Name part, part, ...>`` (empty parts left out)."""
+    return f"<{name} {', '.join(p for p in parts if p)}>"
+
+
+def mm(value: float | None, digits: int = 4) -> str:
+    """A length in m as people read it: ``6.2003 mm`` (``? mm`` when unknown)."""
+    if value is None or not math.isfinite(value):
+        return "? mm"
+    return f"{value * 1e3:.{digits}f} mm"
 
 
 def given(value: float | None) -> float | None:

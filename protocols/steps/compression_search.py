@@ -23,6 +23,8 @@ from gelrig.protocols.steps.base import (
     StepParams,
     StepPlan,
     StepResult,
+    brief,
+    mm,
 )
 
 
@@ -55,7 +57,7 @@ class SearchParams(StepParams):
         return 1 + int(self.confirm)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class SearchResult(StepResult):
     """Where the plate first touches the sphere: the mean of the approaches' estimates."""
 
@@ -64,6 +66,12 @@ class SearchResult(StepResult):
     estimates_m: list[float]
     threshold_crossings_m: list[float]
     tare_offset_N: float  # noqa: N815 (run.json key: units in the name)
+
+    def __repr__(self) -> str:
+        n = len(self.estimates_m)
+        return brief("SearchResult", f"first touch {mm(self.first_touch_m)}",
+                     f"spread {mm(self.first_touch_spread_m)} over {n} approach"
+                     f"{'' if n == 1 else 'es'}", f"tare {self.tare_offset_N * 1e3:.3f} mN")
 
 
 class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, SearchResult]):

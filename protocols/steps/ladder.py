@@ -24,7 +24,9 @@ from gelrig.protocols.steps.base import (
     StepParams,
     StepPlan,
     StepResult,
+    brief,
     given,
+    mm,
 )
 from gelrig.protocols.steps.shear_search import ShearSearchResult
 
@@ -80,13 +82,19 @@ class LadderParams(StepParams):
         return [self.first_overlap + i * self.overlap_step for i in range(int(self.overlaps))]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class LadderResult(StepResult):
     """Where the ladder ran, and one row per pass (overlap, speed, direction)."""
 
     touch_gap_m: float
     centre_angle_rad: float
     passes: list[dict[str, float]] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        n = len(self.passes)
+        return brief("LadderResult", f"{n} pass{'' if n == 1 else 'es'} at touch gap "
+                     f"{mm(self.touch_gap_m)}", f"centre "
+                     f"{math.degrees(self.centre_angle_rad):.2f} deg")
 
 
 class SpeedLadder(StepDefinition[ShearRig, LadderParams, LadderResult]):

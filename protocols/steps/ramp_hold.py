@@ -32,6 +32,8 @@ from gelrig.protocols.steps.base import (
     StepParams,
     StepPlan,
     StepResult,
+    brief,
+    mm,
 )
 from gelrig.protocols.steps.compression_search import SearchResult
 
@@ -100,7 +102,7 @@ class RampHoldParams(StepParams):
         return self.strain_rate * self.diameter
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class RampHoldResult(StepResult):
     """Where the hold was, how many samples it has, and the relaxation fits (1..terms); the
     first touch refitted on the ramp and the measured overlap the fits used."""
@@ -121,6 +123,40 @@ class RampHoldResult(StepResult):
     hold_end: str = ""
     #: the ramp refit's standard error (m); 0 when the recorded touch stands in
     first_touch_ramp_se_m: float = float("nan")
+
+    def __repr__(self) -> str:
+        """One line: depth, hold, the final fit with standard errors, the refits counted."""
+        measured = (f" (measured {mm(self.measured_depth_m)})"
+                    if math.isfinite(self.measured_depth_m) else "")
+        held = "held ? s" if self.held_s is None else f"held {self.held_s:.4g} s"
+        refits = len(self.live_fits)
+        return brief("RampHoldResult", f"depth {mm(self.depth_m)}{measured}",
+                     f"{held}{f' ({self.hold_end})' if self.hold_end else ''}",
+                     fit_brief(self.fits[-1]) if self.fits else "no fits",
+                     f"{refits} live refit{'' if refits == 1 else 's'}")
+
+
+def fit_brief(fit: Mapping[str, Any]) -> str:
+    """A hold's fit (``RampHoldResult.fits``) in one line: ``2-term fit G_e 1.2e+04 +- 50
+    Pa, G_1 ... Pa, tau_1 ... s``, or why it is not a result."""
+    if "error" in fit:
+        return f"fit failed: {fit['error']}"
+    relax = fit.get("relax") or []
+    if not fit.get("resolved", True) or "G_e" not in fit:
+        return f"fit not resolved: {fit.get('not_resolved') or 'no term resolved'}"
+    se = fit.get("stderr") or {}
+
+    def pm(key: str, value: float, unit: str) -> str:
+        err = se.get(key)
+        shown = f"{err:.2g}" if isinstance(err, int | float) and math.isfinite(err) else "?"
+        return f"{key} {value:.4g} +- {shown} {unit}"
+
+    terms = [pm("G_e", float(fit["G_e"]), "Pa")]
+    for i, term in enumerate(relax, start=1):
+        terms += [pm(f"G_{i}", float(term["G"]), "Pa"), pm(f"tau_{i}", float(term["tau"]), "s")]
+    asked = fit.get("terms_requested")
+    head = f"{len(relax)}-term fit" + (f" (of {asked} asked)" if asked else "")
+    return f"{head} {', '.join(terms)}"
 
 
 class RampHold(StepDefinition[CompressionRig, RampHoldParams, RampHoldResult]):

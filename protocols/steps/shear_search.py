@@ -31,6 +31,8 @@ from gelrig.protocols.steps.base import (
     StepParams,
     StepPlan,
     StepResult,
+    brief,
+    mm,
 )
 
 
@@ -68,7 +70,7 @@ class ShearSearchParams(StepParams):
             raise where.error("touch_passes", 1, "allowed: 0 (skip) or 2 to 6")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class ShearSearchResult(StepResult):
     """Where the threshold fired, and (with touch passes) the touch gap and lower sphere."""
 
@@ -78,6 +80,15 @@ class ShearSearchResult(StepResult):
     touch_gap_m: float = math.nan
     lower_sphere_angle_rad: float = math.nan
     touch_fit: dict[str, list[float]] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        touch = (f"touch gap {mm(self.touch_gap_m)}" if math.isfinite(self.touch_gap_m)
+                 else "")
+        lower = (f"lower sphere at {math.degrees(self.lower_sphere_angle_rad):.2f} deg"
+                 if math.isfinite(self.lower_sphere_angle_rad) else "")
+        return brief("ShearSearchResult", f"contact at gap {mm(self.contact_gap_m)}, "
+                     f"{math.degrees(self.contact_angle_rad):.2f} deg", touch, lower,
+                     f"{self.sweeps} sweep{'' if self.sweeps == 1 else 's'}")
 
 
 class ShearContactSearch(StepDefinition[ShearRig, ShearSearchParams, ShearSearchResult]):
