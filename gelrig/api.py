@@ -180,13 +180,16 @@ class RigSession:
     def resume(self, run_dir: str | os.PathLike[str], *, show: bool = False,
                subscribers: Iterable[Callable[[Event], None]] = ()) -> RunResult:
         """Continue a run that ended short from its last completed step, on this rig (the
-        run's protocol, or its script run again with completed steps replayed). A step the
-        rig refuses before anything of this attempt moved raises
+        run's protocol, or its script run again with completed steps replayed; an
+        interactive run is a ConfigError: continue it with ``run_interactive(resume=...)``).
+        A step the rig refuses before anything of this attempt moved raises
         :class:`~gelrig.instrument.core.errors.Refused`; the run folder stays as it was."""
         from gelrig.protocols.host import preflight, prepare_resume, resumable
+        from gelrig.protocols.interactive import refuse_interactive
 
         self._idle()
         run = RunDirectory(os.fspath(run_dir))
+        refuse_interactive(run.read_metadata(), str(run.path))  # run_interactive(resume=)
         if run.read_metadata().get("status") == "completed":
             return _result(run)
         meta, procedure, notes = resumable(run)

@@ -137,6 +137,13 @@ def is_interactive(table: Mapping[str, Any]) -> bool:
     return isinstance(head, Mapping) and head.get(MARK) is True
 
 
+def refuse_interactive(meta: Mapping[str, Any], run_dir: str) -> None:
+    """Raise :class:`ResumeFromPython` when run.json ``meta`` is an interactive run's (what
+    ``gelrig resume`` and ``RigSession.resume`` check first, completed or not)."""
+    if is_interactive(meta.get("protocol") or {}):
+        raise ResumeFromPython(run_dir)
+
+
 def interactive_from_table(table: Mapping[str, Any], source: str,
                            completed: Mapping[int, Mapping[str, Any]]) -> Interactive:
     """The interactive procedure run.json's ``protocol`` table records, with the steps

@@ -273,10 +273,12 @@ def cmd_resume(args: argparse.Namespace) -> int:
         refused_unmoved,
         resumable,
     )
+    from gelrig.protocols.interactive import refuse_interactive
     from gelrig.protocols.resolve import make_clock, resolve_rig
     from gelrig.terminal import run_in_terminal
 
     source = RunDirectory(args.run_dir)
+    refuse_interactive(source.read_metadata(), str(source.path))  # continued from Python
     if source.read_metadata().get("status") == "completed":
         print(f"{source.path} already completed; nothing to resume")
         return 0

@@ -150,6 +150,8 @@ def test_ctrl_c_in_the_block_aborts_and_a_completed_run_can_take_more_steps(
         again.step("ramp_hold", **HOLD)
         # the session ends a run left open when it closes
     assert again.state == "completed" and _meta(out)["status"] == "completed"
+    assert main(["resume", str(out)]) == 2  # completed too: it says how, not "nothing to do"
+    assert "is an interactive run" in capsys.readouterr().err
     with gelrig.open_rig("compression") as rig, \
             rig.run_interactive(resume=out, show=False) as third:  # completed: takes more
         third.step("ramp_hold", name="again", **HOLD)
