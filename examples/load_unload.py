@@ -1,8 +1,8 @@
 """Loading-unloading cycles at three rates: find first touch, then ramp into the sphere to 4 %
-of its diameter and straight back out at 1, 10 and 100 um/s (``load_unload``, from
-compression_steps.py), with the plate backed off and the force recorded for 60 s between
-cycles (``rest``). Records one step per cycle (force, position and overlap columns; results:
-peak force, where the force is gone on the way out, the energy lost).
+of its diameter and straight back out at 1, 10 and 100 um/s (the built-in ``load_unload``),
+with the plate backed off and the force recorded for 60 s between cycles (``rest``). Records
+one step per cycle (force, position and overlap columns; results: peak force, where the force
+is gone on the way out, the energy lost).
 
 The unloading branch is the data that separates the paper's cutoff unloading model from a
 recovery-consistent one (MDR, physics.md 1b): run it on ``examples/rigs/compression_mdr.toml``
@@ -14,8 +14,6 @@ The sphere's diameter is the run's sample's (none is assumed):
     gelrig run examples/load_unload.py --sample-diameter "18.63 mm" \
         --rig examples/rigs/compression_mdr.toml --out runs/mdr
 """
-
-import compression_steps  # noqa: F401 (registers rest, load_unload, creep)
 
 import gelrig
 

@@ -20,7 +20,9 @@ own packages imports this package.
   :class:`CompressionLimits`, :class:`ShearLimits`, :class:`Stage`, :class:`ForceSensor`,
   :class:`Rheometer`
 - results of the built-in steps: :class:`SearchResult`, :class:`RampHoldResult`,
-  :class:`ShearSearchResult`, :class:`LadderResult`
+  :class:`WaitResult`, :class:`MoveResult`, :class:`RestResult`, :class:`LoadUnloadResult`,
+  :class:`CreepResult`, :class:`ShearSearchResult`, :class:`ShearWaitResult`,
+  :class:`LadderResult`
 - events: :class:`Event`, :class:`StepStarted`, :class:`Samples`, :class:`Progress`,
   :class:`FitUpdate`, :class:`Note`, :class:`StepFinished`, :class:`Finished`,
   :class:`RunState`
@@ -62,6 +64,11 @@ _SURFACE: dict[str, str] = {
     "RampHoldResult": "gelrig.protocols.steps.ramp_hold",
     "ShearSearchResult": "gelrig.protocols.steps.shear_search",
     "LadderResult": "gelrig.protocols.steps.ladder",
+    "WaitResult": "gelrig.protocols.steps.wait", "MoveResult": "gelrig.protocols.steps.move",
+    "RestResult": "gelrig.protocols.steps.rest",
+    "LoadUnloadResult": "gelrig.protocols.steps.load_unload",
+    "CreepResult": "gelrig.protocols.steps.creep",
+    "ShearWaitResult": "gelrig.protocols.steps.shear_wait",
     "Event": "gelrig.protocols.events", "StepStarted": "gelrig.protocols.events",
     "Samples": "gelrig.protocols.events", "Progress": "gelrig.protocols.events",
     "FitUpdate": "gelrig.protocols.events", "StepFinished": "gelrig.protocols.events",
@@ -78,19 +85,18 @@ _SURFACE: dict[str, str] = {
 }
 
 __all__ = [
-    "ArmRecorder", "Choice", "CompressionLimits", "CompressionRig", "ConfigError", "Event",
-    "Field", "FieldList", "Finished", "FirstTouchUnknown", "FitUpdate", "ForceRecorder",
-    "ForceSensor",
-    "GelrigError", "InstrumentError", "InteractiveRun", "InterlockTripped", "LadderResult",
-    "LimitError", "NotHomed", "Note", "PacedClock", "PlanCheck", "Progress", "RampHoldResult",
-    "RealClock",
-    "Refused", "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState",
-    "Sample", "Samples", "Script",
-    "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "Stage", "StepContext",
-    "StepDefinition", "StepFinished", "StepParams", "StepPlan", "StepResult", "StepStarted",
-    "VirtualClock", "Where", "analyze", "arm_speed_error", "gap_error", "load_protocol",
-    "open_rig", "param", "protocol", "register_step", "rehearse", "script_main",
-    "stage_position_error", "stage_speed_error", "step_kinds",
+    "ArmRecorder", "Choice", "CompressionLimits", "CompressionRig", "ConfigError", "CreepResult",
+    "Event", "Field", "FieldList", "Finished", "FirstTouchUnknown", "FitUpdate", "ForceRecorder",
+    "ForceSensor", "GelrigError", "InstrumentError", "InteractiveRun", "InterlockTripped",
+    "LadderResult", "LimitError", "LoadUnloadResult", "MoveResult", "NotHomed", "Note",
+    "PacedClock", "PlanCheck", "Progress", "RampHoldResult", "RealClock", "Refused", "RestResult",
+    "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState", "Sample", "Samples",
+    "Script", "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "ShearWaitResult",
+    "Stage", "StepContext", "StepDefinition", "StepFinished", "StepParams", "StepPlan",
+    "StepResult", "StepStarted", "VirtualClock", "WaitResult", "Where", "analyze",
+    "arm_speed_error", "gap_error", "load_protocol", "open_rig", "param", "protocol",
+    "register_step", "rehearse", "script_main", "stage_position_error", "stage_speed_error",
+    "step_kinds",
 ]
 
 if TYPE_CHECKING:
@@ -158,9 +164,15 @@ if TYPE_CHECKING:
         StepResult,
     )
     from gelrig.protocols.steps.compression_search import SearchResult
+    from gelrig.protocols.steps.creep import CreepResult
     from gelrig.protocols.steps.ladder import LadderResult
+    from gelrig.protocols.steps.load_unload import LoadUnloadResult
+    from gelrig.protocols.steps.move import MoveResult
     from gelrig.protocols.steps.ramp_hold import RampHoldResult
+    from gelrig.protocols.steps.rest import RestResult
     from gelrig.protocols.steps.shear_search import ShearSearchResult
+    from gelrig.protocols.steps.shear_wait import ShearWaitResult
+    from gelrig.protocols.steps.wait import WaitResult
 
 
 def __getattr__(name: str) -> Any:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.core.errors import ConfigError, GelrigError, InterlockTripped, Refused
 from gelrig.instrument.core.store import RunDirectory, check_out_dir
+from gelrig.instrument.core.units import to_si
 from gelrig.protocols.control import RunControl
 from gelrig.protocols.events import Event, EventBus
 from gelrig.protocols.manual_motion import Guarded, approach_speed, guarded, still_loaded
@@ -44,6 +45,9 @@ if TYPE_CHECKING:
     from gelrig.interactive import InteractiveRun
 
 log = logging.getLogger(__name__)
+
+#: A quantity a script gives: a unit string (``"0.5 mm/s"``) or an SI number.
+Quantity = str | float
 
 #: Wall seconds the safe stop on leaving a session by an error may take.
 SAFE_STOP_BUDGET = 15.0
@@ -271,28 +275,35 @@ class RigSession:
         rig = self._compression()
         return self._guard("home", rig.home, toward=False)
 
-    def move_plate(self, speed: float, to: float | None = None,
-                   by: float | None = None, confirm: bool = False) -> Guarded:
-        """Move the plate to ``to`` or ``by`` a distance (m) at ``speed`` (m/s), watched under
-        the rig's interlocks like a protocol step (a trip stops it within one sample and
-        raises :class:`InterlockTripped`); refused before homing (:class:`NotHomed`). Toward
-        the sample before a contact search (first touch unknown: the overlap limit is not
-        armed) it is refused (:class:`FirstTouchUnknown`) unless ``confirm``, and then goes
-        at most the safe approach speed (:data:`APPROACH_SPEED`)."""
+    def move_plate(self, speed: Quantity, to: Quantity | None = None,
+                   by: Quantity | None = None, confirm: bool = False) -> Guarded:
+        """Move the plate to ``to`` or ``by`` a distance at ``speed``: unit strings
+        (``move_plate("0.5 mm/s", to="3 mm")``, ``by="-0.1 mm"``) or SI numbers (m, m/s); a
+        bad value is a :class:`ConfigError` naming the argument. Watched under the rig's
+        interlocks like a protocol step (a trip stops it within one sample and raises
+        :class:`InterlockTripped`); refused before homing (:class:`NotHomed`). Toward the
+        sample before a contact search (first touch unknown: the overlap limit is not armed)
+        it is refused (:class:`FirstTouchUnknown`) unless ``confirm``, and then goes at most
+        the safe approach speed (:data:`APPROACH_SPEED`)."""
         self._idle()
         rig = self._compression()
-        if (to is None) == (by is None):
+        v = quantity(speed, "m/s", "move_plate", "speed")
+        target = None if to is None else quantity(to, "m", "move_plate", "to")
+        step = None if by is None else quantity(by, "m", "move_plate", "by")
+        if (target is None) == (step is None):
             raise ConfigError("move_plate", f"to={to}, by={by}", "give exactly one of to, by")
-        speed = approach_speed(rig, speed, to, by, confirm)
-        return self._guard("move the plate", lambda: rig.move_plate(speed, to, by),
-                           toward=rig.toward(to, by))
+        v = approach_speed(rig, v, target, step, confirm)
+        return self._guard("move the plate", lambda: rig.move_plate(v, target, step),
+                           toward=rig.toward(target, step))
 
-    def set_gap(self, gap: float) -> Guarded:
-        """Move the rheometer's lift to ``gap`` (m), watched under the interlocks."""
+    def set_gap(self, gap: Quantity) -> Guarded:
+        """Move the rheometer's lift to ``gap`` (``"1 mm"``, or m), watched under the
+        interlocks."""
         self._idle()
         rig = self._shear()
-        return self._guard("set the gap", lambda: rig.set_gap(gap),
-                           toward=gap < rig.rheometer.gap())
+        to = quantity(gap, "m", "set_gap", "gap")
+        return self._guard("set the gap", lambda: rig.set_gap(to),
+                           toward=to < rig.rheometer.gap())
 
     def readings(self) -> dict[str, float]:
         """Live values at rest (SI): position and force (the mean of the last 0.1 s), or gap,
@@ -377,6 +388,19 @@ class RigSession:
               f"{safe.line()}", file=sys.stderr)
 
 
+def quantity(value: Quantity, unit: str, call: str, arg: str) -> float:
+    """``value`` (a unit string or an SI number) in SI ``unit``. A bad value is a one-line
+    ConfigError naming ``call``'s argument, the value and what is allowed."""
+    example = {"m": "'3 mm'", "m/s": "'0.5 mm/s'"}.get(unit, f"'1 {unit}'")
+    allowed = f"a number in {unit}, or a string with a unit like {example}"
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
+        raise ConfigError(f"{call} {arg}", value, allowed)
+    try:
+        return to_si(value, unit, arg)
+    except ConfigError:
+        raise ConfigError(f"{call} {arg}", value, allowed) from None
+
+
 def _result(run: RunDirectory) -> RunResult:
     meta = run.read_metadata()
     table = meta.get("protocol")
@@ -444,7 +468,7 @@ def load_protocol(reference: str | os.PathLike[str]) -> Procedure:
 
 def register_step(definition: Any) -> Any:
     """Class decorator: make a :class:`StepDefinition` subclass nameable by its ``kind`` from
-    scripts (``run.step("creep", ...)``) and from protocol files that list its module in
+    scripts (``run.step("my_kind", ...)``) and from protocol files that list its module in
     ``[protocol] step_kinds``."""
     from gelrig.protocols.steps import register
 

@@ -15,6 +15,11 @@ Loading validates everything before anything moves; errors name the file, the fi
     kind = "compression_contact_search"
     name = "find the sphere"
     speed = "0.3 mm/s"
+
+    [[step]]                     # repeat: the same step 3 times, "cycle 1" .. "cycle 3"
+    kind = "load_unload"
+    name = "cycle"
+    repeat = 3
     ...
 """
 
@@ -131,14 +136,32 @@ def parse_protocol(table: dict[str, Any], source: str = "<protocol>") -> Protoco
     if len(raw_steps) > MAX_STEPS:  # before reading any: a rehearsal takes ~0.5 s a step
         raise ConfigError("[[step]]", f"{len(raw_steps):,} tables", f"at most {MAX_STEPS} "
                           "steps per protocol; split it into several protocols", source)
-    steps = []
+    steps: list[Step] = []
     for i, raw in enumerate(raw_steps):
         where = Where(f"step[{i}]", source)
         if not isinstance(raw, dict):
             raise where.error("", raw, "a [[step]] table")
-        kind = raw.get("kind")
-        steps.append(make_step(kind, raw.get("name"), raw, rig, where, sample))
+        steps += table_steps(raw, rig, where, sample)
+        if len(steps) > MAX_STEPS:
+            raise where.error("repeat", raw.get("repeat"), f"the protocol would have "
+                              f"{len(steps):,} steps; at most {MAX_STEPS} per protocol")
     return ProtocolSpec(name, rig, tuple(steps), table, source, sample)
+
+
+def table_steps(raw: Mapping[str, Any], rig: str, where: Where,
+                sample: Sample | None = None) -> list[Step]:
+    """The steps of one ``[[step]]`` table: one, or with ``repeat = N`` the same step N
+    times, named ``NAME 1`` .. ``NAME N`` (a user-defined sequence in a protocol file)."""
+    repeat = raw.get("repeat")
+    body = {k: v for k, v in raw.items() if k != "repeat"}
+    first = make_step(body.get("kind"), body.get("name"), body, rig, where, sample)
+    if repeat is None:
+        return [first]
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or not 1 <= repeat <= MAX_STEPS:
+        raise where.error("repeat", repeat, f"an integer in [1, {MAX_STEPS}]: the step is "
+                          "run that many times")
+    return [make_step(body.get("kind"), f"{first.name} {n}", body, rig, where, sample)
+            for n in range(1, repeat + 1)]
 
 
 def make_step(kind: object, name: object, params: Mapping[str, Any], rig: str,

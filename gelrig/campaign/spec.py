@@ -333,6 +333,10 @@ def parse_campaign(table: dict[str, Any], source: str = "<campaign>",
     protocol_path = resolve_protocol_path(ref, base, source)
     script = load_script(protocol_path) if ref.endswith(SCRIPT_SUFFIXES) else None
     protocol = script if script is not None else load_protocol(protocol_path)
+    if script is None and any("repeat" in t for t in protocol.table["step"]):
+        # [params] name a file's step tables by index: one table, one step
+        raise where.error("protocol", ref, "uses repeat; a campaign varies protocol files "
+                          "whose steps are written out, one [[step]] each")
     if rig_ref is None:
         rig_path = default_rig(protocol.rig)
     else:

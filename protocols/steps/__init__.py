@@ -15,14 +15,21 @@ from typing import Any, TypeVar
 from gelrig.instrument.core.errors import ConfigError
 from gelrig.protocols.steps.base import StepDefinition, StepParams, StepResult
 from gelrig.protocols.steps.compression_search import CompressionContactSearch
+from gelrig.protocols.steps.creep import Creep
 from gelrig.protocols.steps.ladder import SpeedLadder
+from gelrig.protocols.steps.load_unload import LoadUnload
+from gelrig.protocols.steps.move import Move
 from gelrig.protocols.steps.ramp_hold import RampHold
+from gelrig.protocols.steps.rest import Rest
 from gelrig.protocols.steps.shear_search import ShearContactSearch
+from gelrig.protocols.steps.shear_wait import ShearWait
+from gelrig.protocols.steps.wait import Wait
 
 #: kind -> definition, for protocol files and scripts
 KINDS: dict[str, StepDefinition[Any, Any, Any]] = {
     d.kind: d
-    for d in (CompressionContactSearch(), RampHold(), ShearContactSearch(), SpeedLadder())
+    for d in (CompressionContactSearch(), RampHold(), Wait(), Move(), Rest(), LoadUnload(),
+              Creep(), ShearContactSearch(), ShearWait(), SpeedLadder())
 }
 #: the kinds gelrig ships: no user module may replace them
 BUILT_IN = frozenset(KINDS)

@@ -78,6 +78,18 @@ def test_series_fits_the_simulators_relaxation_time(series):
         assert fit["G_e"] == pytest.approx(TRUTH.material.g_e, rel=0.05)
 
 
+def test_series_compares_the_fits_across_strains_in_its_log(series):
+    log = (series.path / "gelrig.log").read_text()
+    lines = [line for line in log.splitlines() if "strain " in line and "G_e = " in line]
+    assert [line.split("strain ")[1].split(":")[0] for line in lines] == ["2%", "4%", "6%"]
+    (term,) = TRUTH.material.relax
+    for line in lines:  # a linear material: the same G_e and tau at every strain
+        g_e = float(line.split("G_e = ")[1].split(" kPa")[0]) * 1e3
+        assert g_e == pytest.approx(TRUTH.material.g_e, rel=0.05), line
+        tau, err = (float(v) for v in line.split("tau = ")[1].removesuffix(" s").split(" +- "))
+        assert abs(tau - term.tau) < 3 * err, line
+
+
 def test_series_rests_record_the_baseline_clear_of_the_sphere(series):
     touch = series.results("contact search")["first_touch_m"]
     rests = by_kind(series, "rest")
@@ -154,6 +166,8 @@ def test_creep_holds_the_force_and_the_plate_creeps_forward(creep_py):
     assert step["params"]["force"] == pytest.approx(target)
     assert abs(r["force_mean_N"] - target) < 2 * TRUTH.noise
     assert r["force_rms_error_N"] < 3 * TRUTH.noise  # the noise, and little else
+    assert r["tolerance_N"] == pytest.approx(2e-3) and r["within_tolerance"] is True
+    assert r["force_max_error_N"] < 2e-3
     assert r["held_s"] == pytest.approx(300.0, abs=1.0)
     history = r["history"]
     rises = [b[1] - a[1] for a, b in itertools.pairwise(history)]
@@ -164,6 +178,16 @@ def test_creep_holds_the_force_and_the_plate_creeps_forward(creep_py):
     ramp = delta0 / step["params"]["speed"]
     expected = sls_creep(delta0, ramp / 2, ramp / 2 + r["held_s"])
     assert 0.5 * expected < history[-1][1] - history[0][1] < 2 * expected, expected
+
+
+def test_creep_recovers_at_rest_after_the_hold(creep_py):
+    assert [s["kind"] for s in creep_py.steps] == ["compression_contact_search", "creep", "rest"]
+    touch = creep_py.results("contact search")["first_touch_m"]
+    r = creep_py.results("recovery")
+    assert r["position_m"] == pytest.approx(touch - 2e-3, abs=1e-6)
+    assert abs(r["force_mean_N"]) < 5 * TRUTH.noise  # clear of the sphere
+    log = (creep_py.path / "gelrig.log").read_text()
+    assert "within 2 mN" in log and "creep " in log
 
 
 def test_creep_toml_equals_creep_py(creep_py, tmp_path, capsys):
@@ -184,7 +208,6 @@ def test_creep_toml_equals_creep_py(creep_py, tmp_path, capsys):
 def custom(tmp_path, body):
     path = tmp_path / "p.toml"
     path.write_text('[protocol]\nname = "p"\nrig = "compression"\n'
-                    f'step_kinds = ["{(EXAMPLES / "compression_steps.py").as_posix()}"]\n'
                     '[sample]\ndiameter = "18.63 mm"\n' + body)
     return path
 
@@ -192,11 +215,11 @@ def custom(tmp_path, body):
 @pytest.mark.parametrize(("body", "why"), [
     ('[[step]]\nkind = "compression_contact_search"\n'
      '[[step]]\nkind = "creep"\nforce = "3 N"\n', "max_force"),
-    ('[[step]]\nkind = "load_unload"\n', "needs first_touch"),
+    ('[[step]]\nkind = "load_unload"\nstrain = 0.04\n', "needs first_touch"),
     ('[[step]]\nkind = "compression_contact_search"\n'
      '[[step]]\nkind = "load_unload"\nstrain = 0.2\n', "max_overlap"),
 ])
-def test_custom_kinds_refuse_before_anything_moves(tmp_path, body, why):
+def test_plate_kinds_refuse_before_anything_moves(tmp_path, body, why):
     with gelrig.open_rig("compression") as rig, pytest.raises(gelrig.Refused) as refused:
         rig.run(custom(tmp_path, body), out=tmp_path / "run")
     assert why in str(refused.value) and "refused before anything moves" in str(refused.value)

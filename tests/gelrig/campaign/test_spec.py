@@ -225,3 +225,14 @@ def test_a_grid_whose_largest_member_is_beyond_the_run_bounds_is_refused(tmp_pat
     assert len(err.splitlines()) == 1, err
     assert f'{path}: [params] samples per run = "12,09' in err
     assert "step[1] (ramp and hold) records" in err and "(the grid's largest member)" in err
+
+
+def test_a_protocol_file_with_repeat_is_refused_by_a_campaign(tmp_path):
+    """[params] address a file's step tables by index: a repeated table is several steps."""
+    (tmp_path / "p.toml").write_text(
+        '[protocol]\nname = "p"\nrig = "compression"\n[sample]\ndiameter = "18.63 mm"\n'
+        '[[step]]\nkind = "wait"\nname = "settle"\nduration = "5 s"\nrepeat = 2\n')
+    path = tiny.write(tmp_path, tiny.COMPRESSION.replace('"paper:compression"', '"p.toml"')
+                      .split("[params]")[0], replicates=1)
+    with pytest.raises(ConfigError, match=r'protocol = "p\.toml": uses repeat'):
+        load_campaign(path)
