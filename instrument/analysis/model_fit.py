@@ -346,8 +346,12 @@ BETTER = 0.1
 def _solve(problem: _Problem, q0: FloatArray, bounds: tuple[FloatArray, FloatArray],
            x_scale: FloatArray) -> OptimizeResult:
     setup = problem.setup
-    return least_squares(problem.residual, q0, bounds=bounds, x_scale=x_scale, method="trf",
-                         diff_step=DIFF_STEP[setup.unloading], ftol=FTOL[setup.unloading])
+    # a wild trial step can square past the float range: the trust region rejects it (its
+    # cost is inf) and shrinks, so the overflow is expected, not a fault
+    with np.errstate(over="ignore"):
+        return least_squares(problem.residual, q0, bounds=bounds, x_scale=x_scale,
+                             method="trf", diff_step=DIFF_STEP[setup.unloading],
+                             ftol=FTOL[setup.unloading])
 
 
 class _Profile:
@@ -414,9 +418,11 @@ class _Profile:
             return problem.residual(full)
 
         setup = problem.setup
-        result = least_squares(residual, x0, bounds=(lo, hi), x_scale=self.x_scale[free],
-                               method="trf", diff_step=DIFF_STEP[setup.unloading],
-                               ftol=FTOL[setup.unloading])
+        with np.errstate(over="ignore"):  # a rejected wild trial step (see _solve)
+            result = least_squares(residual, x0, bounds=(lo, hi),
+                                   x_scale=self.x_scale[free], method="trf",
+                                   diff_step=DIFF_STEP[setup.unloading],
+                                   ftol=FTOL[setup.unloading])
         self.refits += 1
         out = q.copy()
         out[free] = result.x
