@@ -16,6 +16,7 @@ from gelrig.instrument.analysis.found_holds import FoundHold, hold_row
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.instrument.reports.document import Column, Section, Table
 from gelrig.instrument.reports.figures import plot_hold_fits
+from gelrig.instrument.reports.hold import hold_warnings
 from gelrig.instrument.reports.plots import save_figure
 
 #: Samples drawn per curve at most (thinned evenly).
@@ -127,7 +128,10 @@ def hold_line(hold: FoundHold, k: int, diameter: float) -> str:
     text = f"{where}: " + "; ".join(parts)
     if row["not_resolved"]:
         text += f" (G_1, tau_1 not resolved: {row['not_resolved']})"
-    return text
+    warnings = hold.creep.warnings if hold.creep is not None else []
+    if hold.relaxation is not None:
+        warnings = hold_warnings(hold.relaxation)
+    return text + "".join(f"; WARNING: {w}" for w in warnings)
 
 
 def step_section(index: int, name: str, kind: str, columns: Mapping[str, FloatArray],
