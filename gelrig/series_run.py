@@ -60,26 +60,30 @@ def _num(row: Mapping[str, object], key: str) -> float:
 
 
 def plot_series(path: Path, rows: Sequence[dict[str, object]]) -> Path:
-    """tau_1, G_e and G_1 with their 95 % intervals against strain, one marker per run."""
-    fig = Figure(figsize=(11.0, 3.8), layout="constrained")
-    axes = fig.subplots(1, 3)
+    """tau_1, G_e and G_1 with their 95 % intervals against strain (top) and hold length
+    (bottom), one marker per run."""
+    fig = Figure(figsize=(11.0, 7.0), layout="constrained")
+    axes = fig.subplots(2, 3)
     runs = sorted({str(r["run"]) for r in rows})
-    for ax, (name, unit) in zip(axes, (("tau_1", "s"), ("G_e", "Pa"), ("G_1", "Pa")),
-                                strict=True):
-        for k, run in enumerate(runs):
-            pts = [r for r in rows if r["run"] == run and math.isfinite(_num(r, name))]
-            if not pts:
-                continue
-            x = [_num(r, "strain") for r in pts]
-            y = [_num(r, name) for r in pts]
-            lo = [v - _num(r, f"{name}_lo") for v, r in zip(y, pts, strict=True)]
-            hi = [_num(r, f"{name}_hi") - v for v, r in zip(y, pts, strict=True)]
-            ax.errorbar(x, y, yerr=[[0.0 if math.isnan(e) else e for e in lo],
-                                    [0.0 if math.isnan(e) else e for e in hi]],
-                        fmt="os^dv"[k % 5], capsize=3, label=run)
-        ax.set_xlabel("strain (overlap / diameter)")
-        ax.set_ylabel(f"{name} ({unit})")
-    axes[0].legend(fontsize=7)
+    for row_axes, (across, label) in zip(axes, (("strain", "strain (overlap / diameter)"),
+                                                ("hold_s", "hold length (s)")), strict=True):
+        for ax, (name, unit) in zip(row_axes, (("tau_1", "s"), ("G_e", "Pa"), ("G_1", "Pa")),
+                                    strict=True):
+            for k, run in enumerate(runs):
+                pts = [r for r in rows if r["run"] == run and math.isfinite(_num(r, name))]
+                if not pts:
+                    continue
+                x = [_num(r, across) for r in pts]
+                y = [_num(r, name) for r in pts]
+                lo = [v - _num(r, f"{name}_lo") for v, r in zip(y, pts, strict=True)]
+                hi = [_num(r, f"{name}_hi") - v for v, r in zip(y, pts, strict=True)]
+                ax.errorbar(x, y, yerr=[[0.0 if math.isnan(e) else e for e in lo],
+                                        [0.0 if math.isnan(e) else e for e in hi]],
+                            fmt="os^dv"[k % 5], capsize=3, label=run)
+            ax.set_xlabel(label)
+            ax.set_ylabel(f"{name} ({unit})")
+    if runs:
+        axes[0][0].legend(fontsize=7)
     return save_figure(fig, path, dpi=90)
 
 
@@ -114,9 +118,10 @@ def series_report(run_dirs: Sequence[str | Path], out_dir: str | Path) -> Series
     table = Table("Every hold (SI; 95 % intervals value +- 1.96 s.e.)", SERIES_COLUMNS, rows,
                   "series.csv")
     section = Section("Holds across steps and runs", [
-        "tau_1, G_e and G_1 of every hold against strain; a creep hold's G_1 and tau_1 come "
-        "from its retardation time tau_c and the recorded loading. A hold not resolved shows "
-        "no values and says why."], [(figure.name, "tau_1, G_e, G_1 against strain.")],
+        "tau_1, G_e and G_1 of every hold against strain and hold length; a creep hold's G_1 "
+        "and tau_1 come from its retardation time tau_c and the recorded loading. A hold not "
+        "resolved shows no values and says why."],
+        [(figure.name, "tau_1, G_e, G_1 against strain and against hold length.")],
         [table])
     summary = "\n".join(lines)
     page = write_report(out, "gelrig series", summary, [section])
