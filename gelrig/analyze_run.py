@@ -58,6 +58,11 @@ from gelrig.protocols.sample import Sample, parse_sample
 
 log = logging.getLogger(__name__)
 
+#: The paper's step kinds: a run of only these gets the paper's report; a run with any other
+#: kind gets every step's columns drawn and its holds found (docs/decisions/0360).
+PAPER_KINDS = frozenset({"compression_contact_search", "ramp_hold", "shear_contact_search",
+                         "speed_ladder"})
+
 
 @dataclass(frozen=True)
 class StepData:
@@ -509,6 +514,8 @@ def analyze_run(
                           + (f" ({problems[0]})" if problems else ""))
     diameter = _diameter(meta, steps)
     result.diameter = paper.DIAMETER_COMPRESSION if diameter is None else diameter
+    # a run of the paper's kinds only keeps the paper's report (and its cost: campaigns)
+    paper_only = all(s.kind in PAPER_KINDS for s in recorded)
     for step in recorded:
         result.step_names[step.index] = (step.name, step.kind)
         if step.kind == "ramp_hold":
@@ -522,7 +529,7 @@ def analyze_run(
                 result.ladders[step.index] = done[0]
                 if done[1] is not None:
                     result.model_fits[step.index] = done[1]
-        else:
+        elif not paper_only:
             result.found[step.index] = _any_step(ctx, step, diameter)
     if fit_model and len(ctx.ladder_steps) > 1:
         joint = _joint_fit(ctx, steps)
