@@ -20,6 +20,7 @@ their parameters and results, and where the model fit's start geometry comes fro
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Mapping
@@ -29,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from gelrig.instrument.analysis.found_holds import FoundHold, holds_of
 from gelrig.instrument.analysis.hold_analysis import HoldAnalysis, NoHold, analyse_hold
 from gelrig.instrument.analysis.ladder_analysis import (
     LadderModel,
@@ -43,12 +45,23 @@ from gelrig.instrument.core.errors import ConfigError
 from gelrig.instrument.core.store import RunDirectory, check_path, read_step
 from gelrig.instrument.physics import paper
 from gelrig.instrument.physics.contact import FloatArray
+from gelrig.instrument.reports.any_run import hold_line, step_section
 from gelrig.instrument.reports.document import Section, write_report
 from gelrig.instrument.reports.hold import hold_problems, hold_section, hold_summary
-from gelrig.instrument.reports.ladder import ladder_section, ladder_summary
+from gelrig.instrument.reports.ladder import (
+    joint_fit_section,
+    joint_fit_summary,
+    ladder_section,
+    ladder_summary,
+)
 from gelrig.protocols.sample import Sample, parse_sample
 
 log = logging.getLogger(__name__)
+
+#: The paper's step kinds: a run of only these gets the paper's report; a run with any other
+#: kind gets every step's columns drawn and its holds found (docs/decisions/0360).
+PAPER_KINDS = frozenset({"compression_contact_search", "ramp_hold", "shear_contact_search",
+                         "speed_ladder"})
 
 
 @dataclass(frozen=True)
@@ -77,6 +90,14 @@ class AnalysisResult:
     hold_fits: dict[int, list[RelaxationFit]] = field(default_factory=dict)
     ladders: dict[int, LadderAnalysis] = field(default_factory=dict)
     model_fits: dict[int, ModelFit] = field(default_factory=dict)
+    #: the holds found in steps of other kinds (relaxation or creep), by step index
+    found: dict[int, list[FoundHold]] = field(default_factory=dict)
+    #: the model fitted to the passes of every ladder step together (two or more)
+    joint_fit: ModelFit | None = None
+    #: the compression sphere's diameter (m) the holds' strains are taken against
+    diameter: float = math.nan
+    #: per step index: (name, kind)
+    step_names: dict[int, tuple[str, str]] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -94,6 +115,7 @@ class _Context:
     summary: list[str]
     setup: FitSetup
     fit_model: bool
+    ladder_steps: dict[int, LadderStep] = field(default_factory=dict)
 
 
 # -- reading the run -------------------------------------------------------------------------
@@ -280,6 +302,7 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
     if not analysis.results:
         ctx.problems.append(f"step {step.index} ({step.name}): no complete pass to analyse")
         return None
+    ctx.ladder_steps[step.index] = ladder
     model = _model_fit(ctx, steps, step, ladder) if ctx.fit_model else None
     fit = model.fit if model else None
     levels = with_chords(ladder.levels(fit, ctx.setup.s), ctx.setup.r1, ctx.setup.r2)
@@ -292,13 +315,14 @@ def _ladder(ctx: _Context, steps: list[StepData], step: StepData
     return analysis, fit
 
 
-def _history(steps: list[StepData], step: StepData, problems: list[str] | None = None
-             ) -> list[dict[str, FloatArray]]:
+def _history(steps: list[StepData], step: StepData, problems: list[str] | None = None,
+             offsets: Mapping[int, int] | None = None) -> list[dict[str, FloatArray]]:
     """The shear steps up to and including ``step``: the motion the contact has seen. Only
     ``step``'s passes keep their labels (they are the ones fitted). A step recorded after a
     resume on a clock that started again at 0 (runs before resumes continued the run's time
     base) is moved on to start after the step before it, and the problems say so: the model
-    integrates the motion in time order."""
+    integrates the motion in time order. With ``offsets`` (step index -> pass offset), those
+    steps keep their passes labelled, renumbered by their offset (a joint fit)."""
     out: list[dict[str, FloatArray]] = []
     end = -math.inf
     for s in steps:
@@ -316,7 +340,10 @@ def _history(steps: list[StepData], step: StepData, problems: list[str] | None =
                 problems.append(f"step {s.index} ({s.name}): its times start before the step "
                                 f"before it ended (a resume that restarted the clock); moved "
                                 f"on by {shift:.1f} s for the model fit")
-        if s.index != step.index:
+        if offsets is not None and s.index in offsets:
+            labels = np.asarray(columns["pass"], dtype=float)
+            columns["pass"] = np.where(labels >= 0, labels + offsets[s.index], -1.0)
+        elif s.index != step.index or offsets is not None:
             columns["pass"] = np.full(t.size, -1.0)
         if t.size:
             end = float(columns["t_s"][-1])
@@ -340,6 +367,88 @@ def _model_fit(ctx: _Context, steps: list[StepData], step: StepData,
         return None
     model.fit.extra["start_from"] = source
     return model
+
+
+def _joint_fit(ctx: _Context, steps: list[StepData]) -> LadderModel | None:
+    """The model fitted to the passes of every analysed ladder step at once (a ladder split
+    over steps, one per overlap): each step's passes renumbered after the ones before, the
+    motion of every shear step in time order, the start geometry from the first ladder's
+    contact search. None (with the reason in the problems) when it cannot be made."""
+    order = sorted(ctx.ladder_steps)
+    first = next(s for s in steps if s.index == order[0])
+    touch, angle, source = _search_geometry(steps, first)
+    if not (math.isfinite(touch) and math.isfinite(angle)):
+        ctx.problems.append("joint model fit skipped: no touch gap or lower-sphere angle")
+        return None
+    offsets, next_offset = {}, 0
+    for index in order:
+        offsets[index] = next_offset
+        next_offset += 1 + max((r.index for r in ctx.ladder_steps[index].analysis.results),
+                               default=-1)
+    last = next(s for s in steps if s.index == order[-1])
+    history = _history(steps, last, offsets=offsets)
+    results = [dataclasses.replace(r, index=r.index + offsets[i])
+               for i in order for r in ctx.ladder_steps[i].analysis.results]
+    union = LadderStep(LadderAnalysis(results, []), [], {})
+    try:
+        model = fit_ladder_model(union, history, ctx.setup, touch, angle)
+    except (ConfigError, ValueError, np.linalg.LinAlgError) as exc:
+        ctx.problems.append(f"joint model fit failed ({exc})")
+        return None
+    model.fit.extra["start_from"] = source
+    model.fit.extra["steps"] = order
+    return model
+
+
+def _resolution(meta: Mapping[str, Any]) -> float:
+    """The stage's position step (m) from the stored rig (1e-8 m without one)."""
+    try:
+        return 1e-3 / float(meta["rig"]["stage"]["counts_per_mm"])
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return 1e-8
+
+
+def _diameter(meta: Mapping[str, Any], steps: list[StepData]) -> float | None:
+    """The compression sphere's diameter (m): the run's sample's, else a step's parameter;
+    None without either."""
+    table = meta.get("protocol")
+    for raw in (meta.get("sample"), table.get("sample") if isinstance(table, dict) else None):
+        if isinstance(raw, dict):
+            try:
+                size = parse_sample(raw, "run.json sample").size("diameter")
+            except ConfigError:
+                size = None
+            if size is not None:
+                return size
+    for s in steps:
+        value = s.params.get("diameter")
+        if isinstance(value, int | float) and value > 0:
+            return float(value)
+    return None
+
+
+def _any_step(ctx: _Context, step: StepData, diameter: float | None) -> list[FoundHold]:
+    """A step of any other kind: its columns drawn, its holds found and fitted (against the
+    paper's sphere, said in the problems, when the run names none)."""
+    holds: list[FoundHold] = []
+    missing = diameter is None
+    if diameter is None:
+        diameter = paper.DIAMETER_COMPRESSION
+    if "position_m" in step.columns and "force_N" in step.columns:
+        holds = holds_of(step.columns, diameter / 2, _resolution(ctx.meta),
+                         _compliance(ctx.meta, ctx.problems))
+        if holds and missing and not any(
+                "no sphere diameter" in p for p in ctx.problems):
+            ctx.problems.append(f"no sphere diameter in the run's sample: the paper's "
+                                f"{paper.DIAMETER_COMPRESSION * 1e3:g} mm used for the holds "
+                                "found")
+    ctx.sections.append(step_section(step.index, step.name, step.kind, step.columns, holds,
+                                     diameter, ctx.out))
+    n = len(next(iter(step.columns.values())))
+    ctx.summary.append(f"Step {step.index} ({step.name}, {step.kind}): {n} samples, "
+                       f"{len(step.columns)} columns plotted; {len(holds)} hold(s) found")
+    ctx.summary += [f"  {hold_line(h, k, diameter)}" for k, h in enumerate(holds, 1)]
+    return holds
 
 
 def _header(path: Path, kind: str, status: str, problems: list[str]) -> list[str]:
@@ -399,7 +508,16 @@ def analyze_run(
                    FitSetup(r1, r2, arm, terms=terms, fit_geometry=fit_geometry,
                             unloading=unloading, anisotropic=anisotropic), fit_model)
     result = AnalysisResult(run.path, out, out / "report.html", "", problems)
-    for step in steps:
+    recorded = [s for s in steps if s.columns and len(next(iter(s.columns.values())))]
+    if not recorded:
+        raise ConfigError("run", str(run.path), "holds no recorded data"
+                          + (f" ({problems[0]})" if problems else ""))
+    diameter = _diameter(meta, steps)
+    result.diameter = paper.DIAMETER_COMPRESSION if diameter is None else diameter
+    # a run of the paper's kinds only keeps the paper's report (and its cost: campaigns)
+    paper_only = all(s.kind in PAPER_KINDS for s in recorded)
+    for step in recorded:
+        result.step_names[step.index] = (step.name, step.kind)
         if step.kind == "ramp_hold":
             hold = _hold(ctx, step, _search_spread(steps, step))
             if hold is not None:
@@ -411,9 +529,15 @@ def analyze_run(
                 result.ladders[step.index] = done[0]
                 if done[1] is not None:
                     result.model_fits[step.index] = done[1]
-    if not (result.hold_fits or result.ladders):
-        raise ConfigError("run", str(run.path), "holds no analysable hold or ladder data"
-                          + (f" ({problems[0]})" if problems else ""))
+        elif not paper_only:
+            result.found[step.index] = _any_step(ctx, step, diameter)
+    if fit_model and len(ctx.ladder_steps) > 1:
+        joint = _joint_fit(ctx, steps)
+        if joint is not None:
+            result.joint_fit = joint.fit
+            ctx.sections.append(joint_fit_section(joint.fit, sorted(ctx.ladder_steps),
+                                                  ctx.setup))
+            ctx.summary += joint_fit_summary(joint.fit, sorted(ctx.ladder_steps), ctx.setup)
     header = _header(run.path, kind, str(meta.get("status", "?")), problems)
     summary = "\n".join([*header, *ctx.summary])
     page = write_report(out, f"gelrig analysis: {run.path.name}", summary, ctx.sections,

@@ -71,7 +71,7 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def build_parser() -> Parser:
-    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run, validate
+    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run, series, validate
 
     parser = Parser(prog="gelrig", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -82,6 +82,7 @@ def build_parser() -> Parser:
     demo.register(sub)
     run.register(sub)
     analyze.register(sub)
+    series.register(sub)
     gui.register(sub)
     campaign.register(sub)
     validate.register(sub)

@@ -9,7 +9,12 @@ from gelrig.commands._args import quantity
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    analyze = sub.add_parser("analyze", help="analyse a run directory into an HTML report")
+    analyze = sub.add_parser(
+        "analyze", help="analyse a run directory into an HTML report",
+        description="Analyse a run of any steps: every step's columns drawn, every hold found "
+                    "(relaxation: the plate still; creep: the force held) and fitted, ramp_hold "
+                    "and speed_ladder steps as the paper's, several ladder steps also fitted "
+                    "together. To compare holds across runs: gelrig series.")
     analyze.add_argument("run_dir", metavar="RUN_DIR")
     analyze.add_argument("--out", default=None, help="report folder (default RUN_DIR/analysis)")
     # Defaults None, resolved by analyze_run: the run's sample (run.json), else the paper's.

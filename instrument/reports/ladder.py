@@ -327,3 +327,21 @@ def _fit_summary(fit: ModelFit, setup: FitSetup | None = None) -> list[str]:
                  f"{fit.noise_h * 1e3:.4f}), F_v {fit.rms_v * 1e3:.4f} mN (noise "
                  f"{fit.noise_v * 1e3:.4f})")
     return lines
+
+
+def joint_fit_summary(fit: ModelFit, steps: Sequence[int], setup: FitSetup) -> list[str]:
+    """The summary's lines for the model fitted to the passes of several ladder steps."""
+    return [f"Joint model fit, ladder steps {', '.join(map(str, steps))} together "
+            f"({fit.n_passes} passes):", *_fit_summary(fit, setup)]
+
+
+def joint_fit_section(fit: ModelFit, steps: Sequence[int], setup: FitSetup) -> Section:
+    """The report section of the model fitted to the passes of several ladder steps at once
+    (a ladder split over steps), beside each step's own fit."""
+    return Section(
+        f"Shear: one model fit to ladder steps {', '.join(map(str, steps))} together",
+        [f"All {fit.n_passes} passes of the {len(steps)} ladder steps fitted with one "
+         f"parameter set ({describe_setup(setup)}); the motion of every shear step in time "
+         "order drives the model, each pass a fresh contact. 95 % confidence intervals."],
+        [], [Table("Joint model fit (SI; 95 % confidence intervals)", _FIT_COLUMNS, fit.rows(),
+                   "ladder_joint_model_fit.csv")])

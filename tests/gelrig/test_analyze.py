@@ -194,7 +194,7 @@ def test_not_a_run_directory(tmp_path):
     with pytest.raises(ConfigError, match=r"no run\.json"):
         analyze_run(tmp_path, tmp_path / "out")
     (tmp_path / "run.json").write_text(json.dumps({"steps": []}))
-    with pytest.raises(ConfigError, match="no analysable"):
+    with pytest.raises(ConfigError, match="no recorded data"):
         analyze_run(tmp_path, tmp_path / "out")
 
 

@@ -1,0 +1,93 @@
+"""The hold finder and the creep fit on synthetic records of the one-term model (exact, so the
+fits must return the material they were made with)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gelrig.instrument.analysis.creep import fit_creep
+from gelrig.instrument.analysis.segments import find_holds
+from gelrig.instrument.physics.contact import hereditary, hertz_prefactor
+
+G_E, G_1, TAU = 7000.0, 2500.0, 40.0
+TAU_C = TAU * (G_E + G_1) / G_E
+R = 9e-3
+K = hertz_prefactor(R)
+STEP = 1e-3 / 34554.96  # the Z825B's encoder step (m)
+T = np.arange(0.0, 250.0, 0.01)
+
+
+def relaxation_record(noise: float = 0.0, seed: int = 1) -> dict[str, np.ndarray]:
+    """Ramp to 0.8 mm in 40 s from 20 um before touch, hold: force from the model."""
+    delta = np.clip(-20e-6 + T * (0.82e-3 / 40.0), -20e-6, 0.8e-3)
+    x = np.maximum(delta, 0) ** 1.5
+    dt = np.diff(T, prepend=T[0])
+    force = K * (G_E * x + G_1 * hereditary(dt, x, TAU))
+    force += np.random.default_rng(seed).normal(0, noise, T.size)
+    return {"t_s": T, "position_m": 5e-3 + delta, "delta_m": delta, "force_N": force}
+
+
+def creep_record(noise: float = 0.0, seed: int = 1) -> dict[str, np.ndarray]:
+    """Force ramped to 50 mN in 30 s, then held: the overlap from the creep compliance
+    (x = (J_e F - dJ H) / K), the plate on the encoder's steps."""
+    force = 0.05 * np.clip((T - 10.0) / 30.0, 0.0, 1.0)
+    dt = np.diff(T, prepend=T[0])
+    j_e, d_j = 1 / G_E, 1 / G_E - 1 / (G_E + G_1)
+    x = (j_e * force - d_j * hereditary(dt, force, TAU_C)) / K
+    delta = np.cbrt(np.maximum(x, 0.0)) ** 2
+    delta[T < 10.0] = -20e-6 + T[T < 10.0] * 2e-6
+    z = np.round((5e-3 + delta) / STEP) * STEP
+    force = force + np.random.default_rng(seed).normal(0, noise, T.size)
+    return {"t_s": T, "position_m": z, "delta_m": z - 5e-3, "force_N": force}
+
+
+def test_a_still_plate_in_contact_is_a_relaxation_hold() -> None:
+    cols = relaxation_record(2e-4)
+    (hold,) = find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"],
+                         STEP)
+    assert hold.kind == "relaxation"
+    assert 40.0 <= hold.t0 <= 42.0 and hold.duration == pytest.approx(208.0, abs=2.0)
+
+
+def test_a_held_force_with_the_plate_moving_is_a_creep_hold() -> None:
+    cols = creep_record(2e-4)
+    (hold,) = find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"],
+                         STEP)
+    assert hold.kind == "creep"  # the ramp's last second is within the force band already
+    assert 38.0 <= hold.t0 <= 42.0 and hold.level == pytest.approx(0.05, rel=1e-3)
+
+
+def test_no_hold_out_of_contact_or_shorter_than_the_minimum() -> None:
+    cols = relaxation_record(2e-4)
+    assert find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"], STEP,
+                      min_duration=300.0) == []
+    clear = {**cols, "delta_m": cols["delta_m"] - 2e-3, "force_N": cols["force_N"] * 0.0}
+    assert find_holds(clear["t_s"], clear["position_m"], clear["force_N"], clear["delta_m"],
+                      STEP) == []
+
+
+@pytest.mark.parametrize("noise", [0.0, 2e-4])
+def test_the_creep_fit_returns_the_material(noise: float) -> None:
+    cols = creep_record(noise)
+    (hold,) = find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"],
+                         STEP)
+    fit = fit_creep(cols["t_s"][:hold.end], cols["delta_m"][:hold.end],
+                    cols["force_N"][:hold.end], hold.start, R, loading=0)
+    assert fit.is_resolved and not fit.partial, (fit.not_resolved, fit.partial)
+    for name, truth in (("G_e", G_E), ("G_1", G_1), ("tau_1", TAU), ("tau_c", TAU_C)):
+        value, err = fit.values[name], fit.stderr[name]
+        assert abs(value - truth) < max(3 * err, 2e-3 * truth), (name, value, err, truth)
+
+
+def test_without_the_loading_g_1_is_not_a_result() -> None:
+    cols = creep_record(2e-4)
+    (hold,) = find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"],
+                         STEP)
+    fit = fit_creep(cols["t_s"][:hold.end], cols["delta_m"][:hold.end],
+                    cols["force_N"][:hold.end], hold.start, R, loading=None)
+    assert fit.is_resolved
+    assert abs(fit.values["tau_c"] - TAU_C) < max(3 * fit.stderr["tau_c"], 2e-3 * TAU_C)
+    assert abs(fit.values["G_e"] - G_E) < max(3 * fit.stderr["G_e"], 2e-3 * G_E)
+    if fit.partial:  # G_1 and tau_1 then show no values
+        assert np.isnan(fit.value("G_1")) and np.isnan(fit.value("tau_1"))
