@@ -372,9 +372,11 @@ class RunHost:
                 stack.enter_context(self.directory.lock())
             stack.enter_context(run_logging(self.log_path))
             stack.callback(self.bus.subscribe(Recorder(self.directory), critical=True))
+            # indexed first: once run.json says "running" the front end takes over at once
+            # (its Ctrl-C handling among the first things)
+            self._index(status="running")
             self.directory.update(instruments=self.rig.identities, status="running",
                                   finished_wall="")
-            self._index()
             # what a resumed script must ask for again at each completed step
             self.runner.recorded = {i: (str(s.get("name")), str(s.get("kind")))
                                     for i, s in self.directory.completed_steps().items()}
@@ -389,9 +391,11 @@ class RunHost:
 
     def _teardown(self) -> None:
         try:
-            if self._entered:
-                self._record_end()
-            self._stack.close()
+            try:
+                if self._entered:
+                    self._record_end()
+            finally:
+                self._stack.close()
         finally:  # what the run freed goes back to the system (a process runs many)
             release_freed_memory()
 
@@ -405,10 +409,11 @@ class RunHost:
             log.warning("could not record the wall end time: %s: %s", type(exc).__name__, exc)
         self._index()
 
-    def _index(self) -> None:
-        """Tell the runs root's catalog (ADR 0370) without waiting: a locked or damaged
-        index is one warning line (once per run) and the run goes on."""
-        problem = index_run(self.directory.path)
+    def _index(self, status: str | None = None) -> None:
+        """Tell the runs root's catalog (ADR 0370) without waiting (``status``: the one
+        run.json is about to say): a locked or damaged index is one warning line (once per
+        run) and the run goes on."""
+        problem = index_run(self.directory.path, status)
         if not problem:
             return
         log.warning("%s", problem)

@@ -78,6 +78,11 @@ def cmd_runs(args: argparse.Namespace) -> int:
 
     if args.plot is not None and args.compare is None:
         raise ConfigError("--plot", args.plot, "goes with --compare RUN RUN...")
+    from gelrig.instrument.core.catalog import parse_when
+
+    for option in ("since", "until"):  # named as the user wrote them
+        if getattr(args, option):
+            parse_when(getattr(args, option), f"--{option}")
     root = Path(args.root)
     entries = find_runs(root, warn=_warn, **_filters(args))
     if args.compare is not None:

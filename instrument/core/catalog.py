@@ -7,8 +7,8 @@ folders stay the source of truth: an entry remembers the size and mtime of the r
 was read from, and :func:`catalog_entries` reads again every run.json that changed, drops
 the folders that went, and rebuilds the whole index when the file is missing or is not an
 SQLite database. Writing is never allowed to hold up a run: :func:`index_run` (called by
-the run host as a run starts and ends) waits for no lock and returns one warning line
-instead of raising. Standard library only (``gelrig runs --help`` stays fast).
+the run host as a run starts and ends) waits at most 0.1 s for a lock and returns one
+warning line instead of raising. Standard library only (``gelrig runs --help`` stays fast).
 """
 
 from __future__ import annotations
@@ -30,6 +30,9 @@ from gelrig.instrument.core.errors import ConfigError
 CATALOG_NAME = ".gelrig-runs.sqlite"
 #: Bumped when the tables change: an index of another version is rebuilt.
 SCHEMA_VERSION = 1
+#: Longest wall time (s) the run host waits for the index's lock: a transient reader or
+#: writer (``gelrig runs``) gets out of the way; one that holds it longer costs a warning.
+WRITE_WAIT = 0.1
 #: Largest run.json the catalog reads (bytes), as the store.
 MAX_METADATA_BYTES = 64 * 1024 * 1024
 #: z of a two-sided 95 % interval.
@@ -244,8 +247,9 @@ def _describe(exc: BaseException) -> str:
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
-def index_run(run_dir: str | os.PathLike[str]) -> str:
-    """Index (or index again) one run in its root's catalog without waiting for a lock:
+def index_run(run_dir: str | os.PathLike[str], status: str | None = None) -> str:
+    """Index (or index again) one run in its root's catalog (``status``: the status run.json
+    is about to record, else its own), waiting at most WRITE_WAIT for a lock:
     '' on success, else one warning line (a locked, read-only or damaged index: the run
     goes on, and :func:`catalog_entries` rebuilds the index later). Never raises."""
     run = Path(run_dir)
@@ -255,18 +259,21 @@ def index_run(run_dir: str | os.PathLike[str]) -> str:
         meta = _read_json(run / "run.json")
         if meta is None:
             return ""
-        with _connect(path, timeout=0.0) as con:
+        with _connect(path, timeout=WRITE_WAIT) as con:
             if not _prepare(con):
                 return f"run index {path}: written by another gelrig version; " \
                        "`gelrig runs` rebuilds it"
+            summary = summarise_run(meta)
+            if status is not None:  # the next listing reads run.json again (its mtime)
+                summary["status"] = status
             con.execute("BEGIN IMMEDIATE")
             try:
-                _store(con, run.name, stat, summarise_run(meta))
+                _store(con, run.name, stat, summary)
                 con.execute("COMMIT")
             except BaseException:
                 con.execute("ROLLBACK")
                 raise
-    except (sqlite3.Error, OSError, ValueError, TypeError, KeyError) as exc:
+    except Exception as exc:  # whatever it is, the run goes on
         return (f"run index {path} not updated ({_describe(exc)}); the run goes on, "
                 "`gelrig runs` rebuilds the index")
     return ""

@@ -289,3 +289,42 @@ def test_resume_records_its_metadata_and_the_catalog_follows(lab, tmp_path, caps
     with sqlite3.connect(root / CATALOG_NAME) as con:  # indexed by the run host as it ended
         assert con.execute("SELECT status, operator, sample FROM runs").fetchall() == [
             ("completed", "dee", "gel-K10")]
+
+
+TINY_LADDER = """
+[protocol]
+name = "tiny ladder"
+rig = "shear"
+
+[sample]
+name = "bead-S1"
+r1 = "9.2 mm"
+r2 = "9.96 mm"
+
+[[step]]
+kind = "speed_ladder"
+name = "ladder"
+overlaps = 1
+first_overlap = "0.45 mm"
+speeds = ["2.37e-4 m/s"]
+travel = "14 mm"
+wait = "5 s"
+touch_gap = "3.012 mm"
+centre_angle = 0.7993
+"""
+
+
+def test_compare_shear_runs_plots_forces_per_pass(tmp_path, capsys):
+    from gelrig.compare import overlay_plot
+
+    protocol = tmp_path / "ladder.toml"
+    protocol.write_text(TINY_LADDER)
+    root = tmp_path / "runs"
+    for name in ("bead-S1", "bead-S2"):
+        assert _run(str(protocol), "--sample", name, "--out", str(root / name)) == 0
+    capsys.readouterr()
+    assert main(["runs", str(root), "--compare", "bead-S1", "bead-S2"]) == 0
+    assert "ladder/touch_gap_m" in capsys.readouterr().out
+    path, notes = overlay_plot([gelrig.load_run(root / n) for n in ("bead-S1", "bead-S2")],
+                               tmp_path / "shear.png")
+    assert notes == [] and path.stat().st_size > 10_000
