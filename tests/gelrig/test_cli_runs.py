@@ -328,3 +328,23 @@ def test_compare_shear_runs_plots_forces_per_pass(tmp_path, capsys):
     path, notes = overlay_plot([gelrig.load_run(root / n) for n in ("bead-S1", "bead-S2")],
                                tmp_path / "shear.png")
     assert notes == [] and path.stat().st_size > 10_000
+
+
+def test_the_api_records_operator_note_and_tags(tmp_path):
+    root = tmp_path / "runs"
+    with gelrig.open_rig("compression") as rig:
+        result = rig.run(_short(tmp_path, "20 s"), out=root / "api", sample="gel-P1",
+                         operator="ada", note="from Python", tags=["api", "api"])
+        assert result.ok
+        with rig.run_interactive(name="nb", out=root / "nb", sample={"diameter": "18.63 mm"},
+                                 show=False, operator="bo", tags=["notebook"]) as run:
+            run.step("compression_contact_search", confirm=0)
+        with pytest.raises(gelrig.ConfigError, match="operator"):
+            rig.run(_short(tmp_path, "20 s"), out=root / "bad", operator="two\nlines")
+    meta = json.loads((root / "api" / "run.json").read_text())
+    assert meta["sample"]["name"] == "gel-P1" and meta["sample"]["diameter"] == 0.01863
+    assert (meta["operator"], meta["note"], meta["tags"]) == ("ada", "from Python", ["api"])
+    df = gelrig.runs(root)
+    assert df.set_index("name").loc["nb", "operator"] == "bo"
+    assert gelrig.runs(root, tag="notebook").name.tolist() == ["nb"]
+    assert not (root / "bad").exists()
