@@ -6,6 +6,8 @@ Every front end runs a procedure through a :class:`RunHost`: ``gelrig run`` / ``
 - the run directory (one creation path, :func:`create_run`, with its checks and the script's
   copy; :func:`resumable` and :func:`prepare_resume` for a resume) and its lock;
 - the run's log (``RUN_DIR/gelrig.log``, tracebacks included);
+- the runs root's catalog (``ROOT/.gelrig-runs.sqlite``, ADR 0370), told as the run starts
+  and ends, never waited for;
 - the wiring: the Recorder as a critical subscriber of the event bus, the instruments'
   identities and the status in run.json, the Runner (preflight, caps, interlocks, watchdog,
   the safe stop on any way out);
