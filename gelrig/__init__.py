@@ -9,6 +9,7 @@ own packages imports this package.
 - run things: :func:`open_rig`, :class:`RigSession`, :class:`RunResult`,
   :class:`InteractiveRun`, :func:`rehearse`, :func:`analyze`, :func:`load_protocol`,
   :func:`script_main`
+- find and read runs: :func:`runs`, :func:`load_run`, :class:`LoadedRun`, :class:`LoadedStep`
 - write scripts: :func:`protocol`, :class:`Run`, :class:`Script`
 - write step kinds: :func:`register_step`, :class:`StepDefinition`, :class:`StepParams`,
   :class:`StepResult`, :class:`StepPlan`, :class:`PlanCheck`, :class:`StepContext`,
@@ -43,6 +44,8 @@ _SURFACE: dict[str, str] = {
     "rehearse": "gelrig.api", "analyze": "gelrig.api", "script_main": "gelrig.api",
     "InteractiveRun": "gelrig.interactive",
     "load_protocol": "gelrig.api",
+    "runs": "gelrig.catalog", "load_run": "gelrig.catalog", "LoadedRun": "gelrig.catalog",
+    "LoadedStep": "gelrig.catalog",
     "protocol": "gelrig.protocols.script", "Run": "gelrig.protocols.script",
     "Script": "gelrig.protocols.script", "Sample": "gelrig.protocols.sample",
     "register_step": "gelrig.api", "step_kinds": "gelrig.api",
@@ -88,14 +91,15 @@ __all__ = [
     "ArmRecorder", "Choice", "CompressionLimits", "CompressionRig", "ConfigError", "CreepResult",
     "Event", "Field", "FieldList", "Finished", "FirstTouchUnknown", "FitUpdate", "ForceRecorder",
     "ForceSensor", "GelrigError", "InstrumentError", "InteractiveRun", "InterlockTripped",
-    "LadderResult", "LimitError", "LoadUnloadResult", "MoveResult", "NotHomed", "Note",
+    "LadderResult", "LimitError", "LoadUnloadResult", "LoadedRun", "LoadedStep", "MoveResult",
+    "NotHomed", "Note",
     "PacedClock", "PlanCheck", "Progress", "RampHoldResult", "RealClock", "Refused", "RestResult",
     "Rheometer", "RigSession", "Run", "RunEnded", "RunResult", "RunState", "Sample", "Samples",
     "Script", "SearchResult", "ShearLimits", "ShearRig", "ShearSearchResult", "ShearWaitResult",
     "Stage", "StepContext", "StepDefinition", "StepFinished", "StepParams", "StepPlan",
     "StepResult", "StepStarted", "VirtualClock", "WaitResult", "Where", "analyze",
-    "arm_speed_error", "gap_error", "load_protocol", "open_rig", "param", "protocol",
-    "register_step", "rehearse", "script_main", "stage_position_error", "stage_speed_error",
+    "arm_speed_error", "gap_error", "load_protocol", "load_run", "open_rig", "param", "protocol",
+    "register_step", "rehearse", "runs", "script_main", "stage_position_error", "stage_speed_error",
     "step_kinds",
 ]
 
@@ -111,6 +115,7 @@ if TYPE_CHECKING:
         script_main,
         step_kinds,
     )
+    from gelrig.catalog import LoadedRun, LoadedStep, load_run, runs
     from gelrig.instrument.contracts.loadcell import ForceSensor
     from gelrig.instrument.contracts.rheometer import Rheometer
     from gelrig.instrument.contracts.stage import Stage

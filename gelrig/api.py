@@ -134,7 +134,8 @@ class RigSession:
             | None = None, *, show: bool = False,
             subscribers: Iterable[Callable[[Event], None]] = (),
             sample: SampleRef | None = None,
-            params: Mapping[str, Any] | None = None) -> RunResult:
+            params: Mapping[str, Any] | None = None, operator: str | None = None,
+            note: str | None = None, tags: Iterable[str] = ()) -> RunResult:
         """Run a protocol (a :class:`~gelrig.protocols.script.Script`, a protocol file, a script
         file, ``"paper:compression"``) into a new run directory ``out`` (default
         ``runs/<time>-<rig>``) and return how it ended. ``show`` prints the CLI's progress;
@@ -155,8 +156,11 @@ class RigSession:
         table such as ``{"name": "A3", "diameter": "12 mm"}``, or a sample file), replacing a
         protocol file's ``[sample]``: a step that needs a size (``ramp_hold``'s diameter)
         takes it from there, and one that has none raises ConfigError naming the field
-        before anything is made. ``params``: a script's parameters (a missing or unknown one
-        is a ConfigError)."""
+        before anything is made; a plain name (``sample="gel-A1"``, not a .toml file)
+        renames the protocol's sample, its sizes kept, and names the run folder
+        (``runs/<time>-gel-A1-compression``). ``params``: a script's parameters (a missing or
+        unknown one is a ConfigError). ``operator``, ``note``, ``tags``: who ran it and why,
+        stored in run.json and listed by :func:`gelrig.runs` (ADR 0370)."""
         from gelrig.protocols.host import (
             create_run,
             default_run_dir,
@@ -164,8 +168,10 @@ class RigSession:
             new_folders,
             preflight,
         )
+        from gelrig.protocols.runinfo import run_info
 
         self._idle()
+        info = run_info(operator, note, tags, option="")
         procedure = resolve_procedure(protocol, params, sample=sample)
         self._check_kind(procedure)
         path = Path(out) if out is not None else default_run_dir(procedure)
@@ -174,7 +180,7 @@ class RigSession:
         if refused:
             raise Refused(f"{refused[0]}; refused before anything moves", procedure.source)
         made = new_folders(path)
-        run = create_run(procedure, self.spec, self.clock_spec, path)
+        run = create_run(procedure, self.spec, self.clock_spec, path, info)
         result, problem = self._execute(procedure, run, None, show, subscribers)
         if problem:
             discard_run(run, made)
@@ -215,12 +221,15 @@ class RigSession:
     def run_interactive(self, name: str = "interactive", out: str | os.PathLike[str]
                         | None = None, *, sample: SampleRef | None = None, show: bool = True,
                         subscribers: Iterable[Callable[[Event], None]] = (),
-                        resume: str | os.PathLike[str] | None = None) -> InteractiveRun:
+                        resume: str | os.PathLike[str] | None = None,
+                        operator: str | None = None, note: str | None = None,
+                        tags: Iterable[str] = ()) -> InteractiveRun:
         """Open one run that steps are added to as you go, from a REPL or notebook: a
         :class:`~gelrig.interactive.InteractiveRun` (use it as a context manager, or call
         its ``end()``). Each ``run.step(kind, name=..., **params)`` runs at once through the
         same runner as a script's step and appends to the one run directory ``out``
-        (default ``runs/<time>-<rig>``); ``sample`` and ``subscribers`` as for :meth:`run`;
+        (default ``runs/<time>-<rig>``); ``sample``, ``subscribers``, ``operator``,
+        ``note`` and ``tags`` as for :meth:`run`;
         ``show`` prints each step's progress and ``run.log`` lines. ``resume``: an
         interactive run recorded before (also one that completed, or one a killed kernel
         left), continued after its completed steps, whose results later steps see."""
@@ -230,7 +239,11 @@ class RigSession:
         if resume is not None:
             self._interactive = resume_interactive(self, resume, show, subscribers)
         else:
-            self._interactive = open_interactive(self, name, out, sample, show, subscribers)
+            from gelrig.protocols.runinfo import run_info
+
+            info = run_info(operator, note, tags, option="")
+            self._interactive = open_interactive(self, name, out, sample, show, subscribers,
+                                                 info)
         return self._interactive
 
     def resume_interactive(self, run_dir: str | os.PathLike[str], *, show: bool = True,

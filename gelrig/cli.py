@@ -71,7 +71,18 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def build_parser() -> Parser:
-    from gelrig.commands import analyze, campaign, demo, fit, gui, model, run, series, validate
+    from gelrig.commands import (
+        analyze,
+        campaign,
+        demo,
+        fit,
+        gui,
+        model,
+        run,
+        runs,
+        series,
+        validate,
+    )
 
     parser = Parser(prog="gelrig", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -85,6 +96,7 @@ def build_parser() -> Parser:
     series.register(sub)
     gui.register(sub)
     campaign.register(sub)
+    runs.register(sub)
     validate.register(sub)
     _register_sim(sub)
     return parser

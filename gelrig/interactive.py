@@ -39,6 +39,7 @@ from gelrig.protocols.steps.base import StepDefinition, StepResult
 
 if TYPE_CHECKING:
     from gelrig.api import RigSession, RunResult
+    from gelrig.protocols.runinfo import RunInfo
 
 log = logging.getLogger(__name__)
 
@@ -219,8 +220,10 @@ def _done(reply: Future[StepResult], timeout: float) -> bool:
 
 def open_interactive(session: RigSession, name: str, out: str | os.PathLike[str] | None,
                      sample: Any, show: bool,
-                     subscribers: Iterable[Callable[[Event], None]]) -> InteractiveRun:
-    """A new interactive run on ``session`` into ``out`` (default ``runs/<time>-<rig>``)."""
+                     subscribers: Iterable[Callable[[Event], None]],
+                     info: RunInfo | None = None) -> InteractiveRun:
+    """A new interactive run on ``session`` into ``out`` (default ``runs/<time>-<rig>``);
+    ``info``: its operator, note and tags."""
     from gelrig.instrument.core.store import check_out_dir
     from gelrig.protocols.host import create_run, default_run_dir
     from gelrig.protocols.sample import resolve_sample
@@ -229,7 +232,7 @@ def open_interactive(session: RigSession, name: str, out: str | os.PathLike[str]
                             None if sample is None else resolve_sample(sample))
     path = Path(out) if out is not None else default_run_dir(procedure)
     check_out_dir(path)
-    run = create_run(procedure, session.spec, session.clock_spec, path)
+    run = create_run(procedure, session.spec, session.clock_spec, path, info)
     stack = contextlib.ExitStack()
     try:
         stack.enter_context(run.lock())

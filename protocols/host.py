@@ -6,6 +6,8 @@ Every front end runs a procedure through a :class:`RunHost`: ``gelrig run`` / ``
 - the run directory (one creation path, :func:`create_run`, with its checks and the script's
   copy; :func:`resumable` and :func:`prepare_resume` for a resume) and its lock;
 - the run's log (``RUN_DIR/gelrig.log``, tracebacks included);
+- the runs root's catalog (``ROOT/.gelrig-runs.sqlite``, ADR 0370), told as the run starts
+  and ends, never waited for;
 - the wiring: the Recorder as a critical subscriber of the event bus, the instruments'
   identities and the status in run.json, the Runner (preflight, caps, interlocks, watchdog,
   the safe stop on any way out);
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import shutil
 import signal
 import sys
@@ -36,6 +39,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from gelrig.instrument.core.catalog import CATALOG_NAME, OPEN_STATUSES, index_run
 from gelrig.instrument.core.clock import Clock, skip_to
 from gelrig.instrument.core.errors import ConfigError, GelrigError
 from gelrig.instrument.core.memory import release_freed_memory
@@ -47,6 +51,7 @@ from gelrig.protocols.procedure import Procedure
 from gelrig.protocols.recorder import Recorder
 from gelrig.protocols.rig import Rig
 from gelrig.protocols.rigfile import RigSpec
+from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.runner import Runner
 from gelrig.protocols.safestop import AxisState, SafeState, bounded
 
@@ -82,13 +87,15 @@ def software() -> dict[str, str]:
     return {"name": "gelrig", "version": found, "python": sys.version.split()[0]}
 
 
-def run_metadata(procedure: Procedure, rig: RigSpec, clock_spec: str) -> dict[str, Any]:
-    """run.json's head: software, the procedure's table, the sample it measures, the rig's
-    table, the clock."""
+def run_metadata(procedure: Procedure, rig: RigSpec, clock_spec: str,
+                 info: RunInfo | None = None) -> dict[str, Any]:
+    """run.json's head: software, the procedure's table, the sample it measures, who ran it
+    and why (operator, note, tags), the rig's table, the clock."""
     sample = procedure.sample
     return {
         "software": software(),
         "sample": None if sample is None else sample.table(),
+        **(info or RunInfo()).table(),
         "protocol": dict(procedure.table), "protocol_file": procedure.source,
         "rig": rig.table, "rig_file": rig.source, "clock": clock_spec,
         "started_wall": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
@@ -96,9 +103,20 @@ def run_metadata(procedure: Procedure, rig: RigSpec, clock_spec: str) -> dict[st
 
 
 def default_run_dir(procedure: Procedure, root: Path = Path("runs")) -> Path:
-    """``ROOT/<YYYYmmdd-HHMMSS>-<rig kind>``, or ``...-2``, ``-3`` if a run is there."""
-    slug = "".join(c if c.isalnum() else "-" for c in procedure.rig)
+    """``ROOT/<YYYYmmdd-HHMMSS>-<sample>-<rig kind>`` (``-<sample>`` when the sample has a
+    name), or ``...-2``, ``-3`` if a run is there."""
+    slug = _slug(procedure.rig)
+    sample = procedure.sample
+    if sample is not None and _slug(sample.name):
+        slug = f"{_slug(sample.name)[:60]}-{slug}"
     return unique_dir(root / f"{time.strftime('%Y%m%d-%H%M%S')}-{slug}")
+
+
+def _slug(text: str) -> str:
+    """``text`` as part of a folder name: letters, digits, ``.``, ``_``; runs of anything
+    else as one ``-``."""
+    out = "".join(c if c.isalnum() or c in "._" else "-" for c in text.strip())
+    return re.sub(r"-{2,}", "-", out).strip("-.")
 
 
 def unique_dir(path: Path) -> Path:
@@ -110,16 +128,16 @@ def unique_dir(path: Path) -> Path:
     return candidate
 
 
-def create_run(procedure: Procedure, rig: RigSpec, clock_spec: str, out: Path
-               ) -> RunDirectory:
+def create_run(procedure: Procedure, rig: RigSpec, clock_spec: str, out: Path,
+               info: RunInfo | None = None) -> RunDirectory:
     """The one way a run directory is made: ``out`` checked (a file, or a folder holding
-    something else, is a ConfigError naming ``--out``), run.json's metadata written, and for a
-    script run a copy of the script beside the data (what made it; what a resume falls back
-    on when the file is gone)."""
+    something else, is a ConfigError naming ``--out``), run.json's metadata written (``info``:
+    operator, note, tags), and for a script run a copy of the script beside the data (what
+    made it; what a resume falls back on when the file is gone)."""
     from gelrig.protocols.script import COPY_DIR, Script
 
     check_out_dir(out)
-    run = RunDirectory.create(out, run_metadata(procedure, rig, clock_spec))
+    run = RunDirectory.create(out, run_metadata(procedure, rig, clock_spec, info))
     if isinstance(procedure, Script) and procedure.path and Path(procedure.path).is_file():
         folder = run.path / COPY_DIR
         folder.mkdir(exist_ok=True)
@@ -151,7 +169,9 @@ def discard_run(run: RunDirectory, made: list[Path]) -> None:
     """Take away the run folder of a new run refused before anything moved: only what
     :func:`create_run` and the host made (run.json, reserve, lock, log, the script's copy),
     never a step file (:meth:`RunDirectory.discard_empty` keeps a folder that holds one),
-    then the parents made for it if they are empty. A folder that was there before, empty,
+    then the parents made for it if they are empty (the run index the host started in a
+    root made for the run goes with it; in a root that was there the index drops the
+    entry when it is next read). A folder that was there before, empty,
     is left empty."""
     from gelrig.protocols.script import COPY_DIR
 
@@ -165,6 +185,9 @@ def discard_run(run: RunDirectory, made: list[Path]) -> None:
         run.path.mkdir(exist_ok=True)
     for folder in made[1:]:  # innermost first; one holding anything else stays
         with contextlib.suppress(OSError):
+            if folder == run.path.parent:  # the catalog the run made in a root made for it
+                for name in (CATALOG_NAME, f"{CATALOG_NAME}-journal"):
+                    (folder / name).unlink(missing_ok=True)
             folder.rmdir()
 
 
@@ -330,6 +353,7 @@ class RunHost:
         self._lock = lock
         self._stack = contextlib.ExitStack()
         self._entered = False
+        self._index_warned = False
         self._thread: threading.Thread | None = None
         self._worker: threading.Thread | None = None  # the thread the steps run on
         self._outcome: list[RunState | BaseException] = []
@@ -350,7 +374,11 @@ class RunHost:
                 stack.enter_context(self.directory.lock())
             stack.enter_context(run_logging(self.log_path))
             stack.callback(self.bus.subscribe(Recorder(self.directory), critical=True))
-            self.directory.update(instruments=self.rig.identities, status="running")
+            # indexed first: once run.json says "running" the front end takes over at once
+            # (its Ctrl-C handling among the first things)
+            self._index(status="running")
+            self.directory.update(instruments=self.rig.identities, status="running",
+                                  finished_wall="")
             # what a resumed script must ask for again at each completed step
             self.runner.recorded = {i: (str(s.get("name")), str(s.get("kind")))
                                     for i, s in self.directory.completed_steps().items()}
@@ -365,9 +393,35 @@ class RunHost:
 
     def _teardown(self) -> None:
         try:
-            self._stack.close()
+            try:
+                if self._entered:
+                    self._record_end()
+            finally:
+                self._stack.close()
         finally:  # what the run freed goes back to the system (a process runs many)
             release_freed_memory()
+
+    def _record_end(self) -> None:
+        """run.json's ``finished_wall`` once the run has ended, and the catalog told."""
+        try:
+            status = self.directory.read_metadata().get("status")
+            if status not in OPEN_STATUSES:
+                self.directory.update(finished_wall=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        except Exception as exc:  # the record of a run must not fail on its end time
+            log.warning("could not record the wall end time: %s: %s", type(exc).__name__, exc)
+        self._index()
+
+    def _index(self, status: str | None = None) -> None:
+        """Tell the runs root's catalog (ADR 0370) without waiting (``status``: the one
+        run.json is about to say): a locked or damaged index is one warning line (once per
+        run) and the run goes on."""
+        problem = index_run(self.directory.path, status)
+        if not problem:
+            return
+        log.warning("%s", problem)
+        if not self._index_warned:
+            self._index_warned = True
+            print(f"gelrig: warning: {problem}", file=sys.stderr, flush=True)
 
     def run(self) -> RunState:
         """Run every step not yet completed on the calling thread; returns the final state

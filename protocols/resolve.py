@@ -50,7 +50,7 @@ def resolve_procedure(ref: ProcedureRef, params: Mapping[str, Any] | None = None
         if not isinstance(procedure, ProtocolSpec | Script):
             raise ConfigError("sample", procedure.source, "only protocol files and scripts "
                               "take a sample")
-        procedure = procedure.with_sample(resolve_sample(sample))
+        procedure = procedure.with_sample(resolve_sample(sample, procedure.sample))
     if params:
         if not isinstance(procedure, Script):
             raise ConfigError("--param", next(iter(params)), "only scripts (.py) take "

@@ -84,12 +84,16 @@ def parse_sample(raw: object, source: str | None = None) -> Sample:
 SampleRef = Sample | Mapping[str, Any] | str | os.PathLike[str]
 
 
-def resolve_sample(ref: SampleRef) -> Sample:
-    """The sample ``ref`` names (a ConfigError naming the field or the file otherwise)."""
+def resolve_sample(ref: SampleRef, base: Sample | None = None) -> Sample:
+    """The sample ``ref`` names (a ConfigError naming the field or the file otherwise): a
+    string that is not a sample file is a sample name, renaming ``base`` (the protocol's
+    own sample, its sizes kept)."""
     if isinstance(ref, Sample):
         return ref
     if isinstance(ref, Mapping):
         return parse_sample(ref, "sample")
+    if isinstance(ref, str) and not is_sample_file(ref):
+        return named(check_sample_name(ref, "sample"), base)
     path = os.fspath(ref)
     table = read_toml(path, "sample file")
     inner = table.get("sample")
@@ -103,12 +107,48 @@ def resolve_sample(ref: SampleRef) -> Sample:
     return parse_sample(inner, path)
 
 
-def sample_from_options(file: str | None, diameter: str | None) -> Sample | None:
-    """``--sample FILE.toml`` and ``--sample-diameter "12 mm"`` as one sample (the diameter
-    given replaces the file's); None when neither is given."""
+#: Longest sample name (characters): it becomes part of the run folder's name.
+MAX_NAME = 80
+
+
+def check_sample_name(name: object, field: str = "--sample") -> str:
+    """A sample name that can name a run folder: one line, no path separator, not ``.`` or
+    ``..``, at most MAX_NAME characters (a ConfigError naming ``field`` otherwise)."""
+    allowed = (f"a sample name: one line of at most {MAX_NAME} characters, without / or \\ "
+               "(it names the run folder), or a sample file (.toml)")
+    if not isinstance(name, str):
+        raise ConfigError(field, name, allowed)
+    text = name.strip()
+    if (not text or text in (".", "..") or len(text) > MAX_NAME
+            or any(c in "/\\" or ord(c) < 32 or ord(c) == 127 for c in text)):
+        raise ConfigError(field, name if len(name) <= 60 else f"{name[:60]}...", allowed)
+    return text
+
+
+def is_sample_file(ref: str) -> bool:
+    """Whether ``--sample REF`` names a sample file (a .toml path, or a file that exists)
+    rather than a sample name."""
+    return ref.lower().endswith(".toml") or os.path.isfile(ref)
+
+
+def named(name: str, base: Sample | None) -> Sample:
+    """``base`` (the protocol's sample: its sizes and material) under the name ``name``."""
+    if base is None:
+        return Sample(name)
+    return Sample(name, base.diameter, base.r1, base.r2, base.material)
+
+
+def sample_from_options(file: str | None, diameter: str | None,
+                        base: Sample | None = None) -> Sample | None:
+    """``--sample NAME|FILE.toml`` and ``--sample-diameter "12 mm"`` as one sample (the
+    diameter given replaces the file's); None when neither is given. A NAME (not a .toml
+    file) renames ``base``, the protocol's own sample, keeping its sizes (ADR 0370)."""
     if file is None and diameter is None:
         return None
-    sample = resolve_sample(file) if file is not None else Sample()
+    if file is not None and not is_sample_file(file):
+        sample = named(check_sample_name(file), base)
+    else:
+        sample = resolve_sample(file) if file is not None else Sample()
     if diameter is not None:
         spec = dataclasses.replace(DIAMETER, key="--sample-diameter")
         value = spec.parse(diameter, Where())

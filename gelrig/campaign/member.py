@@ -33,16 +33,19 @@ Z95 = 1.959963984540054
 FITTED = ("G_e", "G_1", "tau_1", "G_2", "tau_2", "mu", "touch_gap", "lower_angle")
 
 
-def run_protocol(rig: Any, procedure: Procedure, run_dir: Path, rig_spec: Any
-                 ) -> tuple[str, str, dict[str, str]]:
+def run_protocol(rig: Any, procedure: Procedure, run_dir: Path, rig_spec: Any,
+                 meta: dict[str, Any] | None = None) -> tuple[str, str, dict[str, str]]:
     """Run ``procedure`` on the built ``rig`` into a new run directory ``run_dir``; returns
     (final state, reason, :func:`safe_stop_columns`). Nobody watches a member: no live refits
     of a fixed hold. A safe stop not confirmed (a frozen or lost link) is tried again as the
     terminal and the API do (:meth:`RunHost.complete_pending`: every 1 s for up to 60 s,
     recorded in run.json as ``safe_state.completed_later``) before the rig is closed."""
     from gelrig.protocols.host import RunHost, create_run
+    from gelrig.protocols.runinfo import run_info
 
-    run = create_run(procedure, rig_spec, "virtual", run_dir)
+    given = meta or {}
+    info = run_info(given.get("operator"), given.get("note"), given.get("tags"))
+    run = create_run(procedure, rig_spec, "virtual", run_dir, info)
     with RunHost(rig, procedure, run, watched=False) as host:
         state = host.run()
         host.complete_pending()
@@ -72,12 +75,15 @@ def member_procedure(member: MemberSpec) -> Procedure:
     already set in it)."""
     from gelrig.protocols.resolve import resolve_procedure
 
+    sample = (member.run_meta or {}).get("sample")
     if member.protocol_ref.endswith(SCRIPT_SUFFIXES):
-        return resolve_procedure(member.protocol_ref, member.params or None)
-    if member.protocol_table is None:
+        procedure = resolve_procedure(member.protocol_ref, member.params or None)
+    elif member.protocol_table is None:
         raise ConfigError("[campaign] protocol", member.protocol_ref,
                           "a protocol file's table is needed")
-    return resolve_procedure(member.protocol_ref, table=member.protocol_table)
+    else:
+        procedure = resolve_procedure(member.protocol_ref, table=member.protocol_table)
+    return procedure if not sample else resolve_procedure(procedure, sample=sample)
 
 
 @contextmanager
@@ -303,7 +309,8 @@ def _run(member: MemberSpec) -> dict[str, Any]:
     out: dict[str, Any] = {**truth_columns(rig_spec), **param_columns(member, procedure)}
     with _run_dir(member) as run_dir:
         with closing_rig(build_rig(rig_spec, VirtualClock(), in_process=True)) as rig:
-            state, reason, safe = run_protocol(rig, procedure, run_dir, rig_spec)
+            state, reason, safe = run_protocol(rig, procedure, run_dir, rig_spec,
+                                               member.run_meta)
         out.update(safe)
         out["state"] = state
         if state != "completed":

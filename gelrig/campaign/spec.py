@@ -116,6 +116,9 @@ class MemberSpec:
     protocol_table: dict[str, Any] | None
     analysis: Analysis
     keep_dir: str | None = None
+    #: ``gelrig campaign --sample/--operator/--note/--tag``: the sample's name and the
+    #: run's operator, note and tags (ADR 0370), recorded in each member's run.json
+    run_meta: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)

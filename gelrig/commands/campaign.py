@@ -40,6 +40,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the members stored as failed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--sample", default=None, metavar="NAME",
+                   help="the sample's name in each member's run (its sizes the protocol's)")
+    from gelrig.commands.run import run_info_args
+
+    run_info_args(p)
     p.set_defaults(handler=run)
 
 
@@ -52,8 +57,17 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("campaigns") / Path(args.campaign).stem
     store = ResultStore(out, warn=lambda line: print(f"gelrig: warning: {line}",
                                                      file=sys.stderr))  # --out checked first
+    from gelrig.protocols.runinfo import run_info
+    from gelrig.protocols.sample import check_sample_name
+
+    info = run_info(args.operator, args.note, args.tag)
     spec = load_campaign(args.campaign)
     members = list(spec.members)
+    meta = info.table()
+    if args.sample is not None:
+        meta["sample"] = check_sample_name(args.sample)
+    if any(meta.values()):
+        members = [dataclasses.replace(m, run_meta=meta) for m in members]
     if args.keep_runs:
         runs = (out / "runs").resolve()
         members = [dataclasses.replace(m, keep_dir=str(runs / m.member_id)) for m in members]

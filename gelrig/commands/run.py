@@ -17,6 +17,7 @@ if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when
     from gelrig.protocols.procedure import Procedure
     from gelrig.protocols.rehearsal import RehearsalReport
     from gelrig.protocols.rigfile import RigSpec
+    from gelrig.protocols.runinfo import RunInfo
 
 #: Exit code by the final RunState's value (refused: a step refused before it moved).
 EXIT = {"completed": 0, "failed": 1, "aborted": 3, "refused": 2}
@@ -28,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--clock", default=None, metavar="real|virtual|paced:K",
                      help="time base (default: virtual on a simulated rig, real otherwise)")
     run.add_argument("--out", default=None, help="run directory (default runs/<time>-<rig>)")
+    run_info_args(run)
     run.add_argument("--no-rehearse", action="store_true",
                      help="skip the rehearsal on the rig's twin before connecting (experts: a "
                           "script's later steps are then checked only as it sends them)")
@@ -43,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     resume = sub.add_parser("resume", help="continue a run from its last completed step")
     resume.add_argument("run_dir", metavar="RUN_DIR")
     resume.add_argument("--clock", default=None, metavar="real|virtual|paced:K")
+    resume.add_argument("--sample", default=None, metavar="NAME",
+                        help="the sample's name, if the run did not record the right one")
+    run_info_args(resume)
     resume.add_argument("--out", default=None, metavar="NEW_DIR",
                         help="continue into a new folder (another disk): run.json and the step "
                              "files are copied there first")
@@ -55,6 +60,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     export.set_defaults(handler=cmd_export)
 
 
+def run_info_args(parser: argparse.ArgumentParser) -> None:
+    """``--operator``, ``--note``, ``--tag``: who ran the run and why (run.json, the catalog
+    of ``gelrig runs``)."""
+    parser.add_argument("--operator", default=None, metavar="NAME", help="who runs it")
+    parser.add_argument("--note", default=None, metavar="TEXT", help="a note on the run")
+    parser.add_argument("--tag", action="append", default=[], metavar="TAG",
+                        help="a tag to find the run by (repeatable)")
+
+
 def _protocol_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("protocol", metavar="PROTOCOL",
                         help="protocol file (.toml), script (.py; docs/scripting.md), or "
@@ -64,9 +78,11 @@ def _protocol_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a script's parameter (repeatable): VALUE as in TOML, e.g. "
                              "--param strains=[0.02,0.04] --param hold='600 s'")
-    parser.add_argument("--sample", default=None, metavar="SAMPLE.toml",
-                        help="the sample on the rig: a TOML file with a [sample] table (name, "
-                             "diameter or r1 and r2, material); replaces the protocol's")
+    parser.add_argument("--sample", default=None, metavar="NAME|SAMPLE.toml",
+                        help="the sample on the rig: its NAME (the protocol's sample renamed, "
+                             "its sizes kept; it names the run folder), or a TOML file with a "
+                             "[sample] table (name, diameter or r1 and r2, material) that "
+                             "replaces the protocol's")
     parser.add_argument("--sample-diameter", default=None, metavar="DIAMETER",
                         help="the sphere's diameter, e.g. \"12 mm\" (steps that need a size "
                              "take it from the sample; none is assumed)")
@@ -77,9 +93,18 @@ def resolve(args: argparse.Namespace) -> tuple[Procedure, RigSpec]:
     from gelrig.protocols.resolve import parse_params, resolve_procedure, resolve_rig
     from gelrig.protocols.sample import sample_from_options
 
-    sample = sample_from_options(args.sample, args.sample_diameter)
-    procedure = resolve_procedure(args.protocol, parse_params(args.param), sample=sample)
+    procedure = resolve_procedure(args.protocol, parse_params(args.param))
+    sample = sample_from_options(args.sample, args.sample_diameter, base=procedure.sample)
+    if sample is not None:
+        procedure = resolve_procedure(procedure, sample=sample)
     return procedure, resolve_rig(args.rig, procedure)
+
+
+def run_info_of(args: argparse.Namespace) -> RunInfo:
+    """``--operator``, ``--note`` and ``--tag`` checked (one line, exit 2 otherwise)."""
+    from gelrig.protocols.runinfo import run_info
+
+    return run_info(args.operator, args.note, args.tag)
 
 
 def print_plan(protocol: Procedure, rig: RigSpec) -> list[str]:
@@ -203,6 +228,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from gelrig.terminal import run_in_terminal
 
     protocol, rig = resolve(args)
+    info = run_info_of(args)
     out = Path(args.out) if args.out else default_run_dir(protocol)
     check_out_dir(out)
     failed = print_plan(protocol, rig)
@@ -228,7 +254,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if refused:
             return refuse("run", refused[0])
         made = new_folders(out)
-        run = create_run(protocol, rig, spec, out)
+        run = create_run(protocol, rig, spec, out, info)
         with RunHost(built, protocol, run) as host:
             print(f"\nrecording to {out.resolve()} ({spec} clock)")
             state = run_in_terminal(host)
@@ -278,6 +304,7 @@ def cmd_resume(args: argparse.Namespace) -> int:
     from gelrig.terminal import run_in_terminal
 
     source = RunDirectory(args.run_dir)
+    changes = resume_metadata(args)
     refuse_interactive(source.read_metadata(), str(source.path))  # continued from Python
     if source.read_metadata().get("status") == "completed":
         print(f"{source.path} already completed; nothing to resume")
@@ -301,6 +328,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
             run = source.copy_to(args.out)
             held.enter_context(run.lock())
             print(f"copied {source.path} to {run.path}")
+        if changes:
+            run.update(**merged_metadata(run.read_metadata(), changes))
         completed, archived = prepare_resume(run, meta, spec, clock)
         print(f"resuming {run.path}: steps {sorted(completed) or 'none'} done"
               + (f"; kept partial data as {', '.join(archived)}" if archived else ""))
@@ -311,6 +340,38 @@ def cmd_resume(args: argparse.Namespace) -> int:
         _finish(run, state.value, host.reason, quiet=True)
         return refuse("resume", problem)
     return _finish(run, state.value, host.reason)
+
+
+def resume_metadata(args: argparse.Namespace) -> dict[str, Any]:
+    """What ``gelrig resume --sample/--operator/--note/--tag`` changes in run.json."""
+    from gelrig.protocols.runinfo import run_info
+    from gelrig.protocols.sample import check_sample_name
+
+    info = run_info(args.operator, args.note, args.tag)
+    changes: dict[str, Any] = {}
+    if args.sample is not None:
+        changes["sample_name"] = check_sample_name(args.sample)
+    if args.operator is not None:
+        changes["operator"] = info.operator
+    if args.note is not None:
+        changes["note"] = info.note
+    if info.tags:
+        changes["tags"] = list(info.tags)
+    return changes
+
+
+def merged_metadata(meta: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """run.json's fields after a resume's changes: a new sample name, operator or note
+    replaces the recorded one; tags are added."""
+    out = {k: v for k, v in changes.items() if k not in ("sample_name", "tags")}
+    if "sample_name" in changes:
+        sample = meta.get("sample")
+        out["sample"] = {**(sample if isinstance(sample, dict) else {}),
+                         "name": changes["sample_name"]}
+    if "tags" in changes:
+        old = [t for t in meta.get("tags") or [] if isinstance(t, str)]
+        out["tags"] = old + [t for t in changes["tags"] if t not in old]
+    return out
 
 
 def cmd_export(args: argparse.Namespace) -> int:
