@@ -41,6 +41,9 @@ class SampleSizeMissing(ConfigError):
         super().__init__(field, "missing", allowed, source)
         self.size = size
 
+    def __reduce__(self) -> tuple[type[SampleSizeMissing], tuple[str, str, str | None, str]]:
+        return type(self), (self.field, self.allowed, self.source, self.size)
+
 
 DIAMETER = Field("diameter", "m", None, 0.0, 0.1, lo_open=True, optional=True, display="mm",
                  help="sphere diameter (compression rig)")
