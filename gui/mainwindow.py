@@ -62,6 +62,7 @@ from gelrig.gui.protocol_panel import ProtocolPanel, Rehearse
 from gelrig.gui.runview import RunWindow, step_lines
 from gelrig.gui.runview import fit_to_screen as fit
 from gelrig.gui.safety import Safety
+from gelrig.gui.sample_form import load_texts, save_texts
 from gelrig.gui.services import Services
 from gelrig.instrument.core.errors import GelrigError, Refused
 from gelrig.protocols.events import (
@@ -377,6 +378,7 @@ class MainWindow(QMainWindow):
 
         self._scheme_link: QMetaObject.Connection | None = (
             QGuiApplication.styleHints().colorSchemeChanged.connect(scheme_changed))
+        self.protocol.sample_form.set_texts(load_texts(store))
         recent = store.value("recent/protocols") or []
         self.recent = [str(p) for p in (recent if isinstance(recent, list) else [recent])]
         self._fill_recent()
@@ -388,6 +390,13 @@ class MainWindow(QMainWindow):
         store.setValue("window/right_split", self.right_split.saveState())
         store.setValue("recent/protocols", self.recent)
         store.setValue("view/appearance", self.appearance)
+        save_texts(store, self.protocol.sample_form.all_texts())
+        store.sync()
+
+    def remember_sample(self) -> None:
+        """Keep the Sample fields (per rig kind) for the next window, as a run starts."""
+        store = settings()
+        save_texts(store, self.protocol.sample_form.all_texts())
         store.sync()
 
     def remember_protocol(self, path: Path) -> None:
@@ -658,6 +667,9 @@ class MainWindow(QMainWindow):
         release()
 
     def run_protocol(self) -> None:
+        if self.protocol.refusal and not self.protocol.why_not and not self.desk.running:
+            self.refuse_run(self.protocol.refusal, "made")  # nothing to move: no question
+            return
         spec = self.protocol.spec
         if spec is None or self.protocol.why_not:
             return
@@ -667,18 +679,24 @@ class MainWindow(QMainWindow):
         spec = self.protocol.spec
         if spec is None or self.protocol.why_not or self.desk.running:
             return
+        self.remember_sample()
         try:
             path = self.desk.start_run(spec)
         except Refused as exc:  # nothing moved, nothing made (ADR 0330)
-            self.log.add(f"run refused: {exc}; no run folder made", "error")
-            self.statusBar().showMessage(f"run refused: {exc}")
-            self.message("Run refused", f"{exc}\n\nNothing moved; no run folder was made.")
+            self.refuse_run(str(exc), "made")
             return
         except (GelrigError, OSError) as exc:
             self.log.add(f"cannot start the run: {exc}", "error")
             self.message("Cannot start the run", str(exc))
             return
         self.log.add(f"run of {spec.name!r} started; recording to {path}")
+
+    def refuse_run(self, line: str, folder: str) -> None:
+        """A run refused before anything moved: its one line in the log, the status bar and
+        a message (no run folder was ``folder``: made, or kept)."""
+        self.statusBar().showMessage(f"run refused: {line}")
+        self.log.add(f"run refused: {line}; no run folder {folder}", "error")
+        self.message("Run refused", f"{line}\n\nNothing moved; no run folder was {folder}.")
 
     def pause(self) -> None:
         """Pause at the next checkpoint; during a hold, offer to end it or abort instead."""
@@ -734,9 +752,7 @@ class MainWindow(QMainWindow):
         self.instruments.set_connected(connected)
         if self.desk.run_path is None:  # refused before anything moved: its folder is gone
             self.shown_run = None
-            self.statusBar().showMessage(f"run refused: {reason}")
-            self.log.add(f"run refused: {reason}; no run folder kept", "error")
-            self.message("Run refused", f"{reason}\n\nNothing moved; no run folder was kept.")
+            self.refuse_run(reason, "kept")
         else:
             self.statusBar().showMessage(f"run {state.value}: {words}; data in "
                                          f"{self.desk.run_path}")

@@ -28,6 +28,7 @@ from gelrig.gui.fmt import entry_text, entry_value, quantity
 from gelrig.instrument.core.errors import ConfigError
 from gelrig.instrument.core.fields import REQUIRED, Field, Where, written_unit
 from gelrig.instrument.core.units import convert
+from gelrig.protocols.sample import SampleSizeMissing
 from gelrig.protocols.spec import ProtocolSpec, parse_protocol
 from gelrig.protocols.steps import KINDS
 
@@ -126,6 +127,11 @@ class ProtocolForm(QWidget):
         self.source = "<protocol>"
         self.spec: ProtocolSpec | None = None
         self.errors: list[str] = []
+        #: the run's ``[sample]`` table from the window's Sample fields, replacing the file's
+        #: ({}: no sample given); None keeps the file's
+        self.sample_table: dict[str, Any] | None = None
+        #: the protocol refused for a size of the sample nobody gave (None: not so)
+        self.missing: SampleSizeMissing | None = None
 
     def entry(self, step: int, key: str) -> Entry:
         for e in self.entries:
@@ -193,6 +199,11 @@ class ProtocolForm(QWidget):
     def edited_table(self) -> dict[str, Any]:
         """The protocol table with the entries applied (an empty entry: the default)."""
         table = copy.deepcopy(self.table)
+        if self.sample_table is not None and table:
+            if self.sample_table:
+                table["sample"] = copy.deepcopy(self.sample_table)
+            else:
+                table.pop("sample", None)
         steps = table.get("step", [])
         for e in self.entries:
             raw = steps[e.step]
@@ -217,10 +228,15 @@ class ProtocolForm(QWidget):
             if message:
                 self.errors.append(f"{e.name}: {message}")
         table = self.edited_table()
-        self.spec = None
+        self.spec, self.missing = None, None
         self.general.setText("")
         try:
             spec = parse_protocol(table, self.source)
+        except SampleSizeMissing as exc:  # refused as the run would be (the CLI's line)
+            if not self.errors:
+                self._place(exc)
+                self.errors.append(str(exc))
+                self.missing = exc
         except ConfigError as exc:
             if not self.errors:
                 self._place(exc)

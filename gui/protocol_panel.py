@@ -4,6 +4,7 @@ run / pause / resume / abort, and follow the progress with a lab-time ETA."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import logging
 import math
 import threading
@@ -12,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QTimer, Signal
-from PySide6.QtGui import QFontDatabase
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QFontDatabase, QResizeEvent
 from PySide6.QtWidgets import (
     QGroupBox,
     QHBoxLayout,
@@ -23,6 +24,7 @@ from PySide6.QtWidgets import (
     QProgressBar,
     QPushButton,
     QScrollArea,
+    QSizePolicy,
     QStackedWidget,
     QVBoxLayout,
     QWidget,
@@ -30,6 +32,7 @@ from PySide6.QtWidgets import (
 
 from gelrig.gui import dialogs
 from gelrig.gui.protocol_form import ProtocolForm
+from gelrig.gui.sample_form import SampleForm
 from gelrig.gui.script_form import ScriptForm
 from gelrig.gui.tomlout import dumps
 from gelrig.instrument.core.units import lab_time
@@ -68,6 +71,34 @@ HOLD_CHOICES: tuple[dialogs.Choice, ...] = (
     ("cancel", "Cancel", QMessageBox.ButtonRole.RejectRole))
 
 
+class PathLabel(QLabel):
+    """The protocol's file: elided in the middle at the width it is given (a long path never
+    widens the panel past its tab), the whole of it in ``text()`` and the tooltip."""
+
+    def __init__(self, text: str = "", parent: QWidget | None = None):
+        super().__init__(parent)
+        self.full = ""
+        self.setMinimumWidth(0)
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.setText(text)
+
+    def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
+        self.full = text
+        self.setToolTip(text)
+        self._elide()
+
+    def text(self) -> str:
+        return self.full
+
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 (Qt override)
+        super().resizeEvent(event)
+        self._elide()
+
+    def _elide(self) -> None:
+        super().setText(self.fontMetrics().elidedText(self.full, Qt.TextElideMode.ElideMiddle,
+                                                      max(self.width(), 1)))
+
+
 class ProtocolPanel(QGroupBox):
     """The protocol to run and the controls of its run."""
 
@@ -85,7 +116,7 @@ class ProtocolPanel(QGroupBox):
         self.open_button = QPushButton("Open protocol…")
         self.open_button.setToolTip("read a protocol file (TOML) into the form (Ctrl+O)")
         self.open_button.clicked.connect(self.open_clicked)
-        self.file_label = QLabel("no protocol")
+        self.file_label = PathLabel("no protocol")
         top.addWidget(self.open_button)
         top.addWidget(self.file_label, 1)
         layout.addLayout(top)
@@ -112,6 +143,10 @@ class ProtocolPanel(QGroupBox):
         self.plan_text.setPlaceholderText("dry run: steps, lab duration, limit checks")
         layout.addWidget(QLabel("<b>Dry run</b>"))
         layout.addWidget(self.plan_text, 2)
+        #: the run's sample: replaces the file's [sample]; Save writes it
+        self.sample_form = SampleForm()
+        self.sample_form.changed.connect(self._sample_changed)
+        layout.addWidget(self.sample_form)
         buttons = QHBoxLayout()
         self.run_button = QPushButton("Run")
         self.run_button.setToolTip("run the protocol on the connected rig, recording to a new "
@@ -164,8 +199,38 @@ class ProtocolPanel(QGroupBox):
     # ---- inputs -------------------------------------------------------------------------
     @property
     def spec(self) -> Procedure | None:
-        """What Run runs: the form's protocol, or the script with its fields' values."""
-        return self.script_form.script if self.is_script else self.form.spec
+        """What Run runs: the form's protocol, or the script with its fields' values; each
+        measuring the sample in the Sample fields (None while a field holds a bad value)."""
+        if self.sample_form.errors:
+            return None
+        if not self.is_script:
+            return self.form.spec
+        script, base = self.script_form.script, self.script_form.base
+        if script is None:
+            return None
+        sample = self.sample_form.sample or (base.sample if base is not None else None)
+        if script.sample != sample:  # one Script per sample: its rehearsal is kept
+            self.script_form.script = script = dataclasses.replace(script, sample=sample)
+        return script
+
+    @property
+    def refusal(self) -> str:
+        """The one line a run of this protocol is refused with before anything moves (a
+        size of the sample that nobody gave, as ``gelrig run`` says it); '' if none."""
+        if self.is_script or self.sample_form.errors or self.form.missing is None:
+            return ""
+        return str(self.form.missing)
+
+    def _sample_changed(self) -> None:
+        """The Sample fields changed: the protocol is read again with them."""
+        if self.is_script:
+            self._update()
+            return
+        self.form.sample_table = self.sample_form.table()
+        if self.form.table:
+            self.form.validate()  # emits changed: the plan, the modified mark
+        else:
+            self._update()
 
     @property
     def is_script(self) -> bool:
@@ -173,7 +238,8 @@ class ProtocolPanel(QGroupBox):
 
     @property
     def errors(self) -> list[str]:
-        return self.script_form.errors if self.is_script else self.form.errors
+        own = self.script_form.errors if self.is_script else self.form.errors
+        return self.sample_form.errors + own
 
     def load_file(self, path: Path) -> None:
         """Read a protocol file into the form (TOML errors shown as the form's message), or
@@ -194,6 +260,7 @@ class ProtocolPanel(QGroupBox):
     def load_script(self, path: Path) -> None:
         """A protocol script: its parameters as fields; Run and the rehearsal run it."""
         self.forms.setCurrentWidget(self.script_form)
+        self.form.missing = None
         self.path, self.modified = path, False
         self.file_label.setText(str(path))
         try:
@@ -206,6 +273,9 @@ class ProtocolPanel(QGroupBox):
             self.script_form.message.setText(self.script_form.errors[0])
             self._update()
         else:
+            self.sample_form.set_kind(script.rig)
+            if script.sample is not None:
+                self.sample_form.set_table(script.sample.table())
             self.script_form.set_script(script)
         self.modified_changed.emit(self.modified)
 
@@ -213,6 +283,12 @@ class ProtocolPanel(QGroupBox):
         self.forms.setCurrentWidget(self.form)
         self.path = None
         self.file_label.setText(source)
+        head = table.get("protocol")
+        self.form.table = {}  # the Sample fields fill without reading the old protocol again
+        self.sample_form.set_kind(head.get("rig") if isinstance(head, dict) else self.kind)
+        if "sample" in table:  # the file's sample, shown and editable
+            self.sample_form.set_table(table["sample"])
+        self.form.sample_table = self.sample_form.table()
         self.form.set_table(table, source)
         self._saved = self.form.edited_table()  # as the entries show it: the baseline
         self._check_modified()
@@ -251,6 +327,8 @@ class ProtocolPanel(QGroupBox):
         if rehearse is not self.rehearse_fn:
             self.rehearse_fn, self._rehearsing, self.rehearsal = rehearse, None, None
         self.kind, self.limits, self.connected = kind, limits, connected
+        if not self.form.table and not self.is_script:  # no protocol: the rig's sample
+            self.sample_form.set_kind(kind)
         self._update()
 
     def set_pace(self, pace: float, real_time: bool) -> None:
@@ -338,17 +416,28 @@ class ProtocolPanel(QGroupBox):
             self.plan_text.setPlainText(self.plan.text() + self._rehearsal_text(spec))
         elif spec is not None:
             self.plan_text.setPlainText("connect a rig for the dry run (its limits)")
+        elif self.refusal:  # refused as gelrig plan and run refuse it: the one line
+            self.plan_text.setPlainText(f"{self.refusal}\n\nrefused before anything moves: "
+                                        "give the size in the Sample fields above Run")
         else:
             self.plan_text.setPlainText("\n".join(self.errors))
+        missing = self.form.missing if self.refusal else None
+        self.sample_form.set_needed({} if missing is None else {
+            missing.size: f"{missing.field} takes it from the sample: give it here"})
         self.why_not = self._why_not(spec)
         self.run_button.setEnabled(not self.why_not)
-        self.run_button.setToolTip(self.why_not or "run this protocol on the connected rig")
+        self.run_button.setToolTip(self.why_not or (
+            f"refused before anything moves: {self.refusal}" if self.refusal else
+            "run this protocol on the connected rig"))
         self.pause_button.setEnabled(self.state == RunState.RUNNING and not self.pause_requested)
         self.resume_button.setEnabled(self.state == RunState.PAUSED)
         self.abort_button.setEnabled(self.active)
         self.open_button.setEnabled(not self.active)
         self.forms.setEnabled(not self.active)
-        if not self.active and self.why_not and self.state == RunState.IDLE:
+        self.sample_form.setEnabled(not self.active)
+        if not self.active and self.refusal and self.state == RunState.IDLE:
+            self.status.setText(f"a run is refused: {self.refusal}")
+        elif not self.active and self.why_not and self.state == RunState.IDLE:
             self.status.setText(f"not ready: {self.why_not}")
         elif not self.active and self.state == RunState.IDLE:
             self.status.setText(f"ready{self._rehearsal_status()}")
@@ -356,6 +445,8 @@ class ProtocolPanel(QGroupBox):
     def _why_not(self, spec: Procedure | None) -> str:
         if self.active:
             return "a run is going"
+        if spec is None and self.refusal:  # Run says it is refused (the CLI's line)
+            return "" if self.connected else "connect the rig"
         if spec is None:
             return "fix the protocol: " + "; ".join(self.errors) if self.errors \
                 else "open a protocol file"

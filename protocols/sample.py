@@ -33,6 +33,18 @@ HOW_TO_GIVE = ("it as the run's sample: [sample] {key} in the protocol file, --s
                "or --sample-diameter on the command line, sample= in the scripting API")
 
 
+class SampleSizeMissing(ConfigError):
+    """A step needs a size of the sample (``size``: ``diameter``, ``r1``, ``r2``) and none was
+    given: the run is refused before anything moves (the GUI points at its Sample fields)."""
+
+    def __init__(self, field: str, allowed: str, source: str | None, size: str):
+        super().__init__(field, "missing", allowed, source)
+        self.size = size
+
+    def __reduce__(self) -> tuple[type[SampleSizeMissing], tuple[str, str, str | None, str]]:
+        return type(self), (self.field, self.allowed, self.source, self.size)
+
+
 DIAMETER = Field("diameter", "m", None, 0.0, 0.1, lo_open=True, optional=True, display="mm",
                  help="sphere diameter (compression rig)")
 

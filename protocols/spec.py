@@ -35,7 +35,7 @@ from typing import Any, NoReturn, Protocol
 from gelrig.instrument.core.errors import ConfigError, shown
 from gelrig.instrument.core.fields import FieldList, Where, read_toml, written_unit
 from gelrig.protocols.bounds import MAX_STEPS
-from gelrig.protocols.sample import HOW_TO_GIVE, Sample, parse_sample
+from gelrig.protocols.sample import HOW_TO_GIVE, Sample, SampleSizeMissing, parse_sample
 from gelrig.protocols.steps import KINDS, StepDefinition, load_step_modules
 from gelrig.protocols.steps.base import StepParams, StepResult
 
@@ -215,9 +215,9 @@ def with_sample_sizes(definition: StepDefinition[Any, Any, Any], params: Mapping
                                   f"({size * 1e3:g} mm); state the size once, in the sample")
             continue
         if size is None:
-            raise where.error(key, "missing", f"the sample's {attr} is needed and none was "
-                              f"given; give {HOW_TO_GIVE.format(key=attr)} (or {key} in the "
-                              "step)")
+            raise SampleSizeMissing(where.name(key), f"the sample's {attr} is needed and "
+                                    f"none was given; give {HOW_TO_GIVE.format(key=attr)} (or "
+                                    f"{key} in the step)", where.source, attr)
         out[key] = size
     return out
 

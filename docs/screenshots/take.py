@@ -1,16 +1,19 @@
 """Screenshot of gelrig's main window on a simulated rig, in a real window.
 
     xvfb-run -a -s "-screen 0 1440x900x24" python docs/screenshots/take.py OUT.png \
-        [compression|shear] [idle|running SECONDS|finished]
+        [compression|shear] [idle|running SECONDS|finished|sample]
 
 ``running`` starts the rig's paper protocol at 100x and shoots after SECONDS of wall time;
 ``finished`` runs it as fast as possible and shoots the finished run. Runs go to a
-temporary folder. Used for the README's screenshots.
+temporary folder. ``sample`` loads the paper protocol, gives a 12 mm sphere in the Sample
+fields (a GUI settings file of its own) and shoots once it is rehearsed. Used for the
+README's screenshots.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import sys
 import tempfile
 import time
@@ -36,12 +39,23 @@ def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str =
             time.sleep(0.01)
 
     with tempfile.TemporaryDirectory() as runs:
+        os.environ["GELRIG_SETTINGS"] = str(Path(runs) / "gui-settings.ini")  # not the user's
         window = MainWindow(make_services(default_rig(kind), math.inf, Path(runs)))
         window.show()
         window.start()
         pump(lambda: window.desk.rig is not None, 60)
         pump(lambda: False, 1.0)
-        if mode != "idle":
+        if mode == "sample":
+            path = paper_protocol(kind)
+            window.protocol.set_table(tomllib.loads(path.read_text()), str(path))
+            fields = window.protocol.sample_form
+            fields.edits["name"].setText("PDMS sphere A3")
+            fields.edits["diameter" if kind == "compression" else "r1"].setText("12 mm")
+            fields.edits["material"].setText("Sylgard 184, 10:1, cured 2 h at 80 C")
+            pump(window.protocol.run_button.isEnabled, 120)
+            pump(lambda: window.protocol.rehearsal is not None, 120)
+            pump(lambda: False, 1.0)
+        elif mode != "idle":
             path = paper_protocol(kind)
             window.protocol.set_table(tomllib.loads(path.read_text()), str(path))
             pump(window.protocol.run_button.isEnabled, 120)
