@@ -760,7 +760,9 @@ def refine_edges(passes: Sequence[RecordedPass], results: Sequence[PassResult], 
                 edges_note=f"overlap {overlap * 1e3:.4f} mm from l_g; misfit {fit.misfit:+.2f}")
                 for i, fit in fits.items()}
         refined.update(current)
-    return [refined.get(r.index, r) for r in results]
+    return [refined.get(r.index) or replace(
+        r, edges_note="no opposite pass at its level to take the overlap from")
+        for r in results]
 
 
 def value_at(theta: FloatArray, y: FloatArray, centre: float,
