@@ -260,7 +260,9 @@ def _points(
         p = type(p)(p.index, r.direction, r.speed, r.overlap, p.t, p.angle, p.torque,
                     p.normal_force, p.gap)
         f = pass_forces(p, setup.arm)
-        margin = 0.25 * r.l_c
+        # The window is sized by the local edges' l_c: the model fit does not move with the
+        # whole-pass profile's few um (docs/decisions/0260, addendum).
+        margin = 0.25 * r.local_l_c
         lo, hi = sorted((r.contact_start, r.contact_end))
         window = np.flatnonzero(f.moving & (f.theta > lo - margin) & (f.theta < hi + margin))
         stride = max(1, math.ceil(window.size / setup.max_points_per_pass))

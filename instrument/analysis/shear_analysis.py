@@ -18,6 +18,12 @@ Definitions (docs/decisions/0030):
   with a free offset per force, a Huber loss on residuals in units of the noise, and a
   standard error. The windows are travel, not sample counts, so a fast pass is fitted over
   the same arc as a slow one. ``l_c`` runs from touch to detachment.
+- Whole-pass profile (docs/decisions/0260, addendum; :func:`refine_edges`): the local edges
+  start a fit of each pass's whole in-contact F_h and F_v to the fresh-contact shape
+  (:func:`profile_basis`: delta^1.5 along the sliding geometry and its integrals over the
+  travel, any Prony series at constant speed, cut off where F_perp reaches zero), both edges
+  free, at the overlap of the C/AC pair's l_g. Its touch and detachment replace the local
+  ones (``edges = "profile"``); a pass whose profile misfits keeps them (``edges_note``).
 - ``l_g`` (the paper's construction): the clockwise and anticlockwise passes at the same
   overlap and speed each start contact on opposite sides of the lower sphere, before any
   viscous lag, so ``l_g`` is the distance between the two first touches and the centre of
@@ -82,6 +88,17 @@ EDGE_STDERR_FLAG = 6e-6
 #: A pass whose mu, l_g or l_c disagrees with its level's by more than this many standard
 #: errors is flagged.
 OUTLIER_SE = 4.0
+#: Columns of the whole-pass profile (:func:`profile_basis`): delta^1.5 and its integrals.
+PROFILE_TERMS = 3
+#: Points of the grid the profile's integrals are tabulated on, over the chord.
+PROFILE_GRID = 20001
+#: Largest excess of the profile's sum of squared residuals (units of the noise) over a
+#: local edge fit's, in that edge's window, before the profile is refused. On the twin's
+#: noise it stays below 29 over 800 passes (median 4); MDR unloading gives 900 and more.
+PROFILE_MISFIT = 50.0
+#: Profile fits per pair: the first at the overlap of the local touches' l_g, the next at
+#: the overlap of the profile's.
+PROFILE_ROUNDS = 2
 #: Samples either side of the centre of l_g for the friction polynomial (the paper's 20).
 CENTRE_POINTS = 20
 #: A pass recorded over less than this fraction of the planned travel is truncated.
@@ -231,6 +248,14 @@ class PassResult:
     mu_stderr: float = math.nan
     #: Why this pass is an outlier or was analysed with a fallback; empty when clean.
     flags: tuple[str, ...] = ()
+    #: The local edge fits (first touch, detachment) the whole-pass profile starts from.
+    local_edges: tuple[EdgeFit, EdgeFit] | None = None
+    #: How ``touch`` and ``detach`` were found: "profile" (:func:`fit_profile`) or "local"
+    #: (the edge windows alone; ``edges_note`` says why the profile was not used).
+    edges: str = "local"
+    edges_note: str = ""
+    #: Standard error of ``l_c`` (m) from the profile fit (its edges are correlated).
+    profile_l_c_stderr: float = math.nan
 
     @property
     def first_contact(self) -> float:
@@ -243,8 +268,21 @@ class PassResult:
         return self.detach if math.isfinite(self.detach) else self.contact_end
 
     @property
+    def local_l_c(self) -> float:
+        """l_c (m) from the local edge fits alone (their threshold crossings where they fell
+        back), before the whole-pass profile."""
+        if self.local_edges is None:
+            return self.l_c
+        touch, detach = self.local_edges
+        return abs((detach.position if detach.ok else self.contact_end)
+                   - (touch.position if touch.ok else self.contact_start))
+
+    @property
     def l_c_stderr(self) -> float:
-        """Standard error of l_c (m) from its two edges' (NaN when either fell back)."""
+        """Standard error of l_c (m): the profile fit's, else from the two local edges' (NaN
+        when either fell back)."""
+        if math.isfinite(self.profile_l_c_stderr):
+            return self.profile_l_c_stderr
         return math.hypot(self.touch_stderr, self.detach_stderr)
 
     @property
@@ -265,6 +303,7 @@ class PassResult:
             "f_v_centre_N": self.f_v_centre, "mu": self.mu, "mu_stderr": self.mu_stderr,
             "touch_m": self.touch, "touch_stderr_m": self.touch_stderr,
             "detach_m": self.detach, "detach_stderr_m": self.detach_stderr,
+            "l_c_stderr_m": self.l_c_stderr, "edges": self.edges, "edges_note": self.edges_note,
             "outlier": bool(self.flags), "flags": "; ".join(self.flags),
         }
 
@@ -299,7 +338,9 @@ class EdgeFit:
 
     ``position`` is lab theta (m), NaN when not fitted (``reason`` says why); ``stderr`` (m)
     its standard error; ``samples`` in the window, ``spikes`` of them beyond
-    :data:`SPIKE_SIGMA` (down-weighted by the robust loss).
+    :data:`SPIKE_SIGMA` (down-weighted by the robust loss); ``window`` that window (travel in
+    the direction of motion, m) and ``mean_square`` the fit's mean squared residual there
+    (units of the noise).
     """
 
     position: float = math.nan
@@ -307,6 +348,8 @@ class EdgeFit:
     samples: int = 0
     spikes: int = 0
     reason: str = ""
+    window: tuple[float, float] = (math.nan, math.nan)
+    mean_square: float = math.nan
 
     @property
     def ok(self) -> bool:
@@ -438,7 +481,9 @@ def _edge(f: PassForces, direction: float, crossing: float, basis: Basis, before
         if not math.isfinite(edge):
             return EdgeFit(samples=int(x.size), reason="the edge fit left its range")
         fit = EdgeFit(direction * edge, stderr, int(x.size),
-                      int(np.count_nonzero(np.abs(resid) > SPIKE_SIGMA)))
+                      int(np.count_nonzero(np.abs(resid) > SPIKE_SIGMA)),
+                      window=(float(x[0]), float(x[-1])),
+                      mean_square=float(np.mean(resid ** 2)))
         if abs(edge - centre) < 0.25 * min(before, after):
             break
         centre = edge
@@ -458,6 +503,159 @@ def detachment(f: PassForces, direction: float, crossing: float) -> EdgeFit:
     """Where contact ended (lab theta, m): :func:`detach_basis` fitted over
     :data:`DETACH_BEFORE` / :data:`DETACH_AFTER` of travel around the last crossing."""
     return _edge(f, direction, crossing, detach_basis, DETACH_BEFORE, DETACH_AFTER, -1.0)
+
+
+@dataclass(frozen=True)
+class ProfileFit:
+    """Both edges of a pass from its whole in-contact profile (:func:`fit_profile`).
+
+    Positions are lab theta (m), NaN when the fit failed or did not match the data (``reason``
+    says why); ``l_c_stderr`` (m) is that of their distance (the two are correlated);
+    ``misfit`` the larger excess of its sum of squared residuals (units of the noise) over
+    a local edge fit's, in that edge's window.
+    """
+
+    touch: float = math.nan
+    touch_stderr: float = math.nan
+    detach: float = math.nan
+    detach_stderr: float = math.nan
+    l_c_stderr: float = math.nan
+    misfit: float = math.nan
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return math.isfinite(self.touch) and math.isfinite(self.detach)
+
+
+def profile_basis(overlap: float, s: float) -> tuple[Callable[[FloatArray], FloatArray],
+                                                          float, float]:
+    """The fresh-contact shape of F_perp along a pass as :data:`PROFILE_TERMS` columns of the
+    travel ``u`` past the touch: ``x = delta^1.5`` (physics.md section 1, ``delta`` along the
+    geometry of section 2 with ``h = s - overlap``) and its repeated integrals over ``u``.
+
+    At constant speed ``v`` the hereditary integral of an exponential kernel is ``x -
+    X_1 / (v tau) + X_2 / (v tau)^2 - ...``, so any Prony series is a combination of these
+    columns while ``u / (v tau)`` is small (the paper's 2000 s: below 0.23 over the longest
+    chord at the slowest speed; three terms leave less than 1 um of l_c). Each column is
+    scaled to a unit peak; zero before the touch. Returns (columns, h, psi0)."""
+    h = s - overlap
+    psi0 = math.sqrt(max(s * s - h * h, 0.0))
+    grid = np.linspace(0.0, 2.0 * psi0, PROFILE_GRID)
+    step = float(grid[1] - grid[0])
+    terms = [np.clip(s - np.hypot(h, psi0 - grid), 0.0, None) ** 1.5]
+    for _ in range(PROFILE_TERMS - 1):
+        prev = terms[-1]
+        terms.append(np.r_[0.0, np.cumsum(0.5 * (prev[1:] + prev[:-1]) * step)])
+    peaks = [float(np.max(t)) or 1.0 for t in terms]
+
+    def columns(u: FloatArray) -> FloatArray:
+        inside = np.clip(u, 0.0, 2.0 * psi0)
+        first = np.clip(s - np.hypot(h, psi0 - inside), 0.0, None) ** 1.5 / peaks[0]
+        rest = [np.interp(inside, grid, t) / p for t, p in zip(terms[1:], peaks[1:],
+                                                                strict=True)]
+        return np.stack([first, *rest], axis=-1) * (u > 0)[..., None]
+
+    return columns, h, psi0
+
+
+def _profile_residuals(x: FloatArray, y_h: FloatArray, y_v: FloatArray,
+                       columns: Callable[[FloatArray], FloatArray], h: float, psi0: float,
+                       touch: float, detach: float, m_h: float, m_v: float
+                       ) -> tuple[FloatArray, FloatArray]:
+    """Residuals of F_h and F_v (units of their noise) for the profile with edges ``touch``
+    and ``detach`` (travel, m) and friction terms ``m_h``, ``m_v``; amplitudes and offsets
+    by linear least squares."""
+    u = x - touch
+    cols = columns(u)
+    at_end = columns(np.array([detach - touch]))[0]
+    if not at_end[0] > 0:  # detachment beyond the chord: no such profile
+        return np.full(x.size, 1e3), np.full(x.size, 1e3)
+    # F_perp is a combination of the columns that is zero at detachment (the cutoff), and
+    # zero beyond it.
+    shape = (cols[:, 1:] - np.outer(cols[:, 0], at_end[1:] / at_end[0])) * (
+        (u < detach - touch)[:, None])
+    psi = psi0 - u
+    d = np.hypot(h, psi)
+    ones = np.ones((x.size, 1))
+    out: list[FloatArray] = []
+    for y, resolve in ((y_h, (psi + m_h * h) / d), (y_v, (h - m_v * psi) / d)):
+        a = np.hstack([shape * resolve[:, None], ones])
+        ata = a.T @ a
+        try:
+            coef = np.linalg.solve(ata + 1e-12 * np.trace(ata) * np.eye(ata.shape[0]), a.T @ y)
+        except np.linalg.LinAlgError:
+            coef = np.linalg.lstsq(a, y, rcond=None)[0]
+        out.append(y - a @ coef)
+    return out[0], out[1]
+
+
+def fit_profile(f: PassForces, direction: float, touch: EdgeFit, detach: EdgeFit,
+                overlap: float, s: float, start: tuple[float, float] | None = None
+                ) -> ProfileFit:
+    """Both edges of a pass fitted to its whole in-contact F_h and F_v (docs/decisions/0260,
+    addendum): the fresh-contact shape of :func:`profile_basis` at ``overlap`` (m; the pair's,
+    from its l_g), resolved as physics.md section 2 with a free friction term per force, each
+    force with its own free amplitudes and offset, zero outside [touch, detachment].
+
+    Spans the windows of the local edge fits ``touch`` and ``detach`` and starts from them
+    (or from ``start``, lab theta of both edges, m). The edges and friction terms are fitted
+    with the Huber loss of the edge fits, the amplitudes by linear least squares at each
+    step. Refused (NaN, with the reason) when the profile fits an edge window worse than the
+    local fit by more than :data:`PROFILE_MISFIT` (chi^2): then the data do not have the
+    cutoff model's shape (e.g. MDR unloading, carried history) and the local edges stand."""
+    from scipy.optimize import least_squares
+
+    if not (touch.ok and detach.ok) or not 0 < overlap < s:
+        return ProfileFit(reason="no local edges or overlap to start from")
+    x_all = direction * f.theta
+    e1, e2 = direction * touch.position, direction * detach.position
+    w = f.moving & (x_all >= e1 - ONSET_BEFORE) & (x_all <= e2 + DETACH_AFTER)
+    if start is not None:
+        e1, e2 = direction * start[0], direction * start[1]
+    x = x_all[w]
+    y_h, y_v = f.f_h[w] / f.noise_h, f.f_v[w] / f.noise_v
+    columns, h, psi0 = profile_basis(overlap, s)
+    if not e2 - e1 < 2.0 * psi0:
+        return ProfileFit(reason=f"the local l_c ({(e2 - e1) * 1e3:.4f} mm) is not inside the "
+                          f"chord of the pair's l_g ({2e3 * psi0:.4f} mm)")
+    scale = 1e-6
+
+    def residuals(p: FloatArray) -> FloatArray:
+        r_h, r_v = _profile_residuals(x, y_h, y_v, columns, h, psi0, e1 + p[0] * scale,
+                                      e2 + p[1] * scale, p[2] * 1e-2, p[3] * 1e-2)
+        return np.concatenate([r_h, r_v])
+
+    reach = EDGE_REACH / scale
+    # Edges in um from the start, friction terms in 1e-2 (from the paper's 5e-3).
+    res = least_squares(residuals, np.array([0.0, 0.0, 0.5, 0.5]), loss="huber",
+                        f_scale=EDGE_F_SCALE, diff_step=1e-4, xtol=1e-4, ftol=1e-5)
+    if not (res.success and np.all(np.isfinite(res.fun))):
+        return ProfileFit(reason=f"the profile fit failed: {res.message}")
+    if not np.all(np.abs(res.x[:2]) <= reach):
+        return ProfileFit(reason=f"the profile's edges moved beyond {EDGE_REACH * 1e3:g} mm")
+    edge1, edge2 = e1 + float(res.x[0]) * scale, e2 + float(res.x[1]) * scale
+    # Misfit: the squared residuals in each local edge window against the local fit's there.
+    excess = []
+    for local in (touch, detach):
+        near = np.tile((x >= local.window[0]) & (x <= local.window[1]), 2)
+        excess.append(float(np.sum(res.fun[near] ** 2) - local.mean_square
+                            * np.count_nonzero(near)) if np.any(near) else math.inf)
+    misfit = max(excess)
+    if not misfit <= PROFILE_MISFIT:
+        return ProfileFit(misfit=misfit, reason=f"the whole-pass profile fits an edge window "
+                          f"worse than the local fit, chi^2 +{misfit:.3g} (beyond "
+                          f"{PROFILE_MISFIT:g}): the local edges stand")
+    try:
+        cov = np.linalg.inv(res.jac.T @ res.jac)
+    except np.linalg.LinAlgError:
+        return ProfileFit(reason="the profile fit does not determine its edges")
+    spread = max(1.0, 1.4826 * float(np.median(np.abs(res.fun - np.median(res.fun)))))
+    cov = cov[:2, :2] * (scale * spread) ** 2
+    l_c_var = float(cov[0, 0] + cov[1, 1] - 2.0 * cov[0, 1])
+    return ProfileFit(direction * edge1, math.sqrt(max(float(cov[0, 0]), 0.0)),
+                      direction * edge2, math.sqrt(max(float(cov[1, 1]), 0.0)),
+                      math.sqrt(max(l_c_var, 0.0)), misfit)
 
 
 def analyse_pass(p: RecordedPass, arm: float, k_sigma: float = K_SIGMA, s: float = S_PAPER
@@ -510,8 +708,61 @@ def analyse_pass(p: RecordedPass, arm: float, k_sigma: float = K_SIGMA, s: float
         theta_zero=theta_zero, f_v_peak=float(np.max(f.f_v[inside])),
         noise_h=f.noise_h, noise_v=f.noise_v, travel=travel, touch=touch.position,
         touch_stderr=touch.stderr, detach=detach.position, detach_stderr=detach.stderr,
-        flags=tuple(flags),
+        flags=tuple(flags), local_edges=(touch, detach),
     )
+
+
+def chord_overlap(l_g: float, s: float) -> float:
+    """The overlap (m) whose chord ``2 sqrt(s^2 - (s - overlap)^2)`` is ``l_g`` (m); NaN
+    outside (0, 2 s)."""
+    if not 0 < l_g < 2.0 * s:
+        return math.nan
+    return s - math.sqrt(s * s - 0.25 * l_g * l_g)
+
+
+def refine_edges(passes: Sequence[RecordedPass], results: Sequence[PassResult], arm: float,
+                 s: float = S_PAPER) -> list[PassResult]:
+    """Each C/AC pair's edges from the whole in-contact profile (:func:`fit_profile`).
+
+    The shape depends on the overlap, which the rig knows only to the contact search's
+    error: it is taken from the pair's l_g (the chord, physics.md section 2), first that of
+    the local touches, then that of the profile's (:data:`PROFILE_ROUNDS`). Each pass keeps
+    its own edges, amplitudes and friction; a pass without a partner, or whose profile
+    misfits, keeps its local edges and says why in ``edges_note``."""
+    by_index = {p.index: p for p in passes}
+    groups: dict[tuple[float, float], dict[float, PassResult]] = {}
+    for r in results:
+        groups.setdefault((round(r.overlap, 9), r.speed), {}).setdefault(r.direction, r)
+    refined: dict[int, PassResult] = {}
+    for pair in groups.values():
+        cw, acw = pair.get(1.0), pair.get(-1.0)
+        if cw is None or acw is None:
+            continue
+        forces = {r.index: pass_forces(by_index[r.index], arm) for r in (cw, acw)}
+        current = {r.index: r for r in (cw, acw)}
+        for _ in range(PROFILE_ROUNDS):
+            c, a = current[cw.index], current[acw.index]
+            overlap = chord_overlap(a.first_contact - c.first_contact, s)
+            fits = {r.index: fit_profile(forces[r.index], r.direction, *r.local_edges,
+                                         overlap, s, (current[r.index].touch,
+                                                      current[r.index].detach))
+                    for r in (cw, acw) if r.local_edges is not None}
+            if len(fits) < 2 or not all(fit.ok for fit in fits.values()):
+                notes = "; ".join(f"pass {i}: {f.reason}" for i, f in fits.items()
+                                  if not f.ok) or "no local edges to start from"
+                current = {r.index: replace(r, edges="local", edges_note=notes)
+                           for r in (cw, acw)}
+                break
+            current = {i: replace(
+                current[i], touch=fit.touch, touch_stderr=fit.touch_stderr, detach=fit.detach,
+                detach_stderr=fit.detach_stderr, l_c=abs(fit.detach - fit.touch),
+                profile_l_c_stderr=fit.l_c_stderr, edges="profile",
+                edges_note=f"overlap {overlap * 1e3:.4f} mm from l_g; misfit {fit.misfit:+.2f}")
+                for i, fit in fits.items()}
+        refined.update(current)
+    return [refined.get(r.index) or replace(
+        r, edges_note="no opposite pass at its level to take the overlap from")
+        for r in results]
 
 
 def value_at(theta: FloatArray, y: FloatArray, centre: float,
@@ -681,7 +932,7 @@ def analyse_ladder(
         good.append(p)
         results.append(r)
     unpaired = []
-    paired = pair_passes(good, results, arm)
+    paired = pair_passes(good, refine_edges(good, results, arm, s), arm)
     for r in paired:
         if not math.isfinite(r.l_g):
             unpaired.append(r.index)

@@ -41,6 +41,8 @@ _PASS_COLUMNS = (
     Column("touch_stderr_m", "touch s.e. (um)", 1e6, 2),
     Column("detach_m", "detachment (mm)", 1e3, 7),
     Column("detach_stderr_m", "detachment s.e. (um)", 1e6, 2),
+    Column("l_c_stderr_m", "l_c s.e. (um)", 1e6, 2), Column("edges", "edges from"),
+    Column("edges_note", "edges note"),
     Column("contact_start_m", "contact start (mm)", 1e3, 6),
     Column("contact_end_m", "contact end (mm)", 1e3, 6),
     Column("outlier", "outlier"), Column("flags", "why flagged"),
@@ -63,7 +65,9 @@ _FIT_COLUMNS = (
 _DEFINITIONS = (
     "l_c: from first touch to detachment, each fitted over a window of travel (the onset "
     "model's F_h, F_v ~ delta^1.5 along the sliding geometry; a polynomial falling to zero at "
-    "detachment) with a robust loss, the 5 sigma threshold crossings as the fallback; "
+    "detachment) with a robust loss, the 5 sigma threshold crossings as the fallback, then "
+    "both refined by a fit of the pass's whole in-contact F_h and F_v to the fresh-contact "
+    "shape at the overlap of the pair's l_g (edges from: profile; local where that misfits); "
     "l_g: between the first-contact points of the clockwise and anticlockwise passes at the "
     "same overlap and speed; chord: 2 sqrt(S^2 - (S - delta)^2), S = R1 + R2, the geometric "
     "l_g at the step's overlap setpoint delta below the touch gap the contact search found "

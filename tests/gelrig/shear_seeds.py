@@ -88,10 +88,6 @@ def noisy_run(quiet: RunDirectory, path: Path, seed: int, step: int = 1) -> RunD
 #: The README's per-pass bounds (issue 26): l_g to the chord at the true overlap (relative),
 #: |l_c(C) - l_c(AC)| (m), l_c/l_g to the fresh-contact model, mu to the truth (relative).
 BOUNDS = {"l_g": 0.003, "l_c_C_AC": 10e-6, "l_c_over_l_g": 0.0035, "mu": 0.05}
-#: |l_c(C) - l_c(AC)| may exceed its bound only within this many of the pair's standard
-#: errors: where the samples lie far apart (23.7 um at the fastest speed) the edges cannot
-#: resolve 10 um on every seed, and the analysis says how well they do.
-C_AC_SE = 3.0
 
 
 class Truth:
@@ -140,14 +136,11 @@ def pass_errors(results: list[Any], passes: list[Any], truth: Truth) -> list[dic
     return rows
 
 
-def failures(rows: list[dict[str, float]], strict: bool = False) -> list[str]:
-    """One line per pass and bound that is not met (NaN fails); unless ``strict``, the C/AC
-    bound is widened to :data:`C_AC_SE` standard errors of the pair where that is larger."""
+def failures(rows: list[dict[str, float]]) -> list[str]:
+    """One line per pass and bound that is not met (NaN fails)."""
     out = []
     for row in rows:
         for key, bound in BOUNDS.items():
-            if key == "l_c_C_AC" and not strict:
-                bound = max(bound, C_AC_SE * row["l_c_C_AC_se"])
             if not abs(row[key]) <= bound:
                 out.append(f"pass {row['pass']} ({row['overlap_m'] * 1e3:.2f} mm, "
                            f"{row['speed_m_s']:.3g} m/s, {'C' if row['direction'] > 0 else 'AC'}"

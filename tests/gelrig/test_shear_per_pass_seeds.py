@@ -63,23 +63,22 @@ def test_the_seeded_noise_is_the_twins():
 
 @pytest.mark.slow
 def test_every_level_of_the_paper_ladder_meets_the_per_pass_bounds_over_24_seeds(quiet_ladder):
-    """Every bound on every pass of every seed; |l_c(C) - l_c(AC)| beyond 10 um only within
-    3 of the pair's standard errors (the fastest speed at the smallest overlap, where the
-    samples lie 23.7 um apart), and on at most one seed in ten."""
+    """Every bound, the plain 10 um C/AC one included, on every pass of every seed (with the
+    edges from the whole-pass profile, docs/decisions/0260 addendum), and every pass's edges
+    come from the profile."""
     truth = shear_seeds.Truth()
     worst = {k: 0.0 for k in shear_seeds.BOUNDS}
-    failed, strict = [], set()
+    failed = []
     for seed in SEEDS:
-        _, rows = measure(shear_seeds.noisy_columns(quiet_ladder, seed), truth)
+        step, rows = measure(shear_seeds.noisy_columns(quiet_ladder, seed), truth)
         assert len(rows) == 40 and len({(r["overlap_m"], r["speed_m_s"]) for r in rows}) == 20
+        assert all(r.edges == "profile" for r in step.analysis.results), [
+            (r.index, r.edges_note) for r in step.analysis.results if r.edges != "profile"]
         failed += [f"seed {seed}: {line}" for line in shear_seeds.failures(rows)]
-        if shear_seeds.failures(rows, strict=True):
-            strict.add(seed)
         for key in worst:
             worst[key] = max(worst[key], max(abs(r[key]) for r in rows))
-    print("worst over", len(SEEDS), "seeds:", worst, "beyond 10 um C/AC:", sorted(strict))
+    print("worst over", len(SEEDS), "seeds:", worst)
     assert not failed, failed
-    assert len(strict) <= len(SEEDS) // 10, sorted(strict)
 
 
 @pytest.mark.parametrize("before", [237e-6, 120e-6])

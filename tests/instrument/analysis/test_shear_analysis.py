@@ -207,3 +207,31 @@ def test_the_chord_is_the_geometric_contact_length_at_the_overlap():
     c = chord(r1, r2, 0.78e-3)
     assert rows[0]["l_g_chord_m"] == c and rows[0]["l_g_over_chord"] == pytest.approx(0.0108 / c)
     assert math.isnan(rows[1]["l_g_over_chord"])
+
+
+def test_both_edges_come_from_the_whole_pass_profile(ladder):
+    """docs/decisions/0260 addendum: every pass's touch and detachment are refined by the fit
+    of its whole in-contact profile, and its l_c is the fresh-contact model's within its
+    standard error and 1 um (the three-term shape at the slowest speed)."""
+    from gelrig.instrument.physics.sliding import SlidingGeometry, shear_pass
+
+    cols, _, _ = ladder
+    analysis, _ = analyse_ladder(cols, ARM, travel=14e-3)
+    for r in analysis.results:
+        assert r.edges == "profile", r.edges_note
+        sp = shear_pass(SlidingGeometry(R1, R2, r.overlap), TRUTH, r.speed, MU,
+                        dt=1e-7 / r.speed)
+        inside = np.flatnonzero(sp.f_perp > 0)
+        model = float(sp.theta[inside[-1]] - sp.theta[inside[0]])
+        assert 0 < r.l_c_stderr < 3e-6
+        assert r.l_c == pytest.approx(model, abs=4 * r.l_c_stderr + 1e-6), r.index
+
+
+def test_a_carried_history_keeps_the_local_edges_and_says_why():
+    """A pass that is not a fresh contact does not have the profile's shape: the pair keeps
+    the edges of the local fits, and ``edges_note`` gives the reason."""
+    cols, _, _ = synth_ladder(carry_history=True)
+    analysis, _ = analyse_ladder(cols, ARM, travel=14e-3)
+    for r in analysis.results:
+        assert r.edges == "local" and r.edges_note, (r.index, r.edges_note)
+        assert r.l_c == pytest.approx(r.local_l_c, abs=1e-12)
