@@ -21,8 +21,8 @@ import statistics
 import time
 
 import numpy as np
+from _timing import median_time
 
-from benchmarks._timing import median_time
 from gelrig.instrument.analysis.live_fit import LiveFit, StopRule
 from gelrig.instrument.analysis.live_fit_sim import BLOCK, modulus_noise, simulate_hold
 from gelrig.instrument.analysis.relaxation import fit_relaxation

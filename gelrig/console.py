@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
@@ -24,6 +26,7 @@ from gelrig.protocols.events import (
     InterlockTrip,
     Note,
     SafeStopped,
+    Samples,
     StateChanged,
     StepFinished,
     StepStarted,
@@ -31,6 +34,11 @@ from gelrig.protocols.events import (
 from gelrig.protocols.events import (
     Progress as ProgressEvent,
 )
+
+#: Least time (s) between two redraws of the bars for progress events alone: at most about
+#: 10 a second. Any other event the view shows (a step started or ended, a state line, a
+#: fault) redraws at once; sample blocks redraw nothing (issue 31).
+REFRESH_INTERVAL = 0.1
 
 
 def fit_line(event: FitUpdate) -> str:
@@ -69,11 +77,16 @@ class ConsoleView:
 
     It renders only from the publishing thread (no auto-refresh thread): rich's lazy imports
     are not safe to race, and one thread is all a progress display needs; :meth:`say` prints
-    from another thread under the same lock.
+    from another thread under the same lock. It redraws on the events it shows, progress at
+    most every :data:`REFRESH_INTERVAL` s of wall time (``clock``), never on sample blocks.
     """
 
-    def __init__(self, console: Console | None = None, log_path: Path | None = None):
+    def __init__(self, console: Console | None = None, log_path: Path | None = None,
+                 clock: Callable[[], float] = time.monotonic):
         self.console = console or Console(stderr=True)
+        self._wall = clock
+        self._drawn = -math.inf  # wall time of the last redraw
+        self.redraws = 0
         self.log_path = log_path
         self._headline: Text | None = None  # the trip or fault waiting for its safe state
         self._closed = False
@@ -118,8 +131,16 @@ class ConsoleView:
     def __call__(self, event: Event) -> None:
         if self._closed:
             return
+        if isinstance(event, Samples):
+            return  # nothing shown changes with a sample block
         with self._lock:
             self._handle(event)
+            now = self._wall()
+            if isinstance(event, ProgressEvent | FitUpdate) and \
+                    now - self._drawn < REFRESH_INTERVAL:
+                return  # shown at the next redraw (a later progress, the step's end)
+            self._drawn = now
+            self.redraws += 1
             self.progress.refresh()
 
     def _handle(self, event: Event) -> None:

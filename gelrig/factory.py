@@ -121,7 +121,6 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
     from gelrig.drivers.usb6001.sensor import Usb6001ForceSensor
     from gelrig.simulators.kdc101 import register, unregister
     from gelrig.simulators.twins.compression import CompressionTwin
-    from gelrig.simulators.usb6001.server import start_server
 
     stage_entry, force_entry = spec.stage, spec.force
     chain = force_entry.chain
@@ -159,6 +158,8 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
                 options: str | nidaqmx.GrpcSessionOptions = nidaqmx.GrpcSessionOptions(
                     grpc_channel=InProcessChannel(device), session_name="")
             else:
+                from gelrig.simulators.usb6001.server import start_server  # gRPC server
+
                 server = start_server(device)
                 closers.append(server.stop)
                 force_address = options = f"grpc://{server.address}"

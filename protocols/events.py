@@ -11,13 +11,15 @@ import logging
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gelrig.instrument.analysis.live_fit import LiveFitState
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.protocols.safestop import SafeState
+
+if TYPE_CHECKING:  # the live fit (and scipy.optimize) only when a hold fits
+    from gelrig.instrument.analysis.live_fit import LiveFitState
 
 log = logging.getLogger(__name__)
 

@@ -95,3 +95,32 @@ def test_an_unverified_stop_and_a_log_path_with_brackets() -> None:
     assert out.getvalue().strip() == (
         "FAULT Disconnected: KDC101: [/x] link lost; STOP SENT, NOT CONFIRMED: stage "
         "unreachable - check the rig; details: runs/[/x]/gelrig.log")
+
+
+def test_the_bars_redraw_on_what_they_show_at_most_ten_times_a_second():
+    """Sample blocks redraw nothing; progress at most every 0.1 s of wall time; a step's
+    start or end and a state line at once; the last progress is shown all the same
+    (issue 31: 8,953 redraws for 50 progress events)."""
+    import numpy as np
+
+    from gelrig.protocols.events import Samples
+
+    now = [0.0]
+    out = io.StringIO()
+    console = ConsoleView(Console(file=out, width=200, force_terminal=False, color_system=None),
+                          clock=lambda: now[0])
+    block = Samples(0.0, 0, {"force_N": np.zeros(100)})
+    with console:
+        console(StepStarted(0.0, 0, "hold", "ramp_hold", {}, {}))
+        assert console.redraws == 1
+        for k in range(100):  # 1 s of wall time: 100 progress events, 1000 sample blocks
+            now[0] = 0.01 * (k + 1)
+            for _ in range(10):
+                console(block)
+            console(Progress(k, 0, (k + 1) / 100, k, 100 - k, "hold", {}))
+        assert 9 <= console.redraws - 1 <= 11
+        before = console.redraws
+        console(StateChanged(1.0, RunState.RUNNING, RunState.PAUSED, "paused by you"))
+        assert console.redraws == before + 1
+        console(StepFinished(2.0, 0, "hold", "completed", {}))
+    assert "100.0%" in out.getvalue()
