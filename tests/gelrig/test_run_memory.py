@@ -10,7 +10,7 @@ from itertools import pairwise
 import pytest
 
 import gelrig
-from gelrig.instrument.core import stage_path
+from gelrig.instrument.core import motion, stage_path
 from gelrig.protocols import host
 from gelrig.simulators.kdc101 import device
 
@@ -37,8 +37,10 @@ strain_rate = "0.02 /s"
 
 def test_runs_in_one_process_keep_nothing_of_earlier_runs(tmp_path, monkeypatch):
     # bounded histories fill in one run, so what grows after is a leak: the simulator's log,
+    # the simulated stage's path (a day of lab time: about 35 phases a run here, 1-10 kB),
     # and the KDC101 driver's stage path (up to 4096 reports, 256 commands: ~1 MB when full)
     monkeypatch.setattr(device, "KEPT_MESSAGES", 100)
+    monkeypatch.setattr(motion, "HISTORY", 60.0)
     monkeypatch.setattr(stage_path, "KEEP_REPORTS", 64)
     monkeypatch.setattr(stage_path, "KEEP_SEGMENTS", 16)
     released = []
