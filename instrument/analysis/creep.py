@@ -92,10 +92,13 @@ class CreepFit:
 
 
 def _fit(residual: Callable[[FloatArray], FloatArray], p0: list[float], lower: list[float]
-         ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Least squares from ``p0``: the parameters, their covariance (the Newey-West sandwich:
-    the feedback leaves the residuals correlated over several bins; from a central-difference
-    Jacobian; NaN when singular) and the residuals."""
+         ) -> tuple[FloatArray, list[FloatArray], FloatArray]:
+    """Least squares from ``p0``: the parameters, two covariances (from a central-difference
+    Jacobian; NaN when singular), and the residuals. The covariances: the sandwich of
+    independent bins (HC1) and the Newey-West one (the feedback may leave the residuals
+    correlated over several bins); with few bins the latter's lagged terms can also shrink it
+    (tau's error / s.e. 1.20 over 40 seeds of the rig, 0.96 with HC1), so the caller takes
+    the larger error of each value (ADR 0375)."""
     result = least_squares(residual, np.asarray(p0, dtype=float), bounds=(lower, np.inf),
                            x_scale="jac")
     p = np.asarray(result.x, dtype=float)
@@ -110,6 +113,7 @@ def _fit(residual: Callable[[FloatArray], FloatArray], p0: list[float], lower: l
     n, m = jac.shape
     scale = np.linalg.norm(jac, axis=0)
     cov = np.full((m, m), math.nan)
+    white = cov
     if n > m and np.all(scale > 0) and np.all(np.isfinite(jac)):
         js = jac / scale
         sv = np.linalg.svd(js, compute_uv=False)
@@ -117,25 +121,72 @@ def _fit(residual: Callable[[FloatArray], FloatArray], p0: list[float], lower: l
             bread = np.linalg.inv(js.T @ js)
             score = js * fun[:, None]
             meat = score.T @ score
+            white = bread @ meat @ bread * (n / (n - m)) / np.outer(scale, scale)
             lags = max(1, round(n ** (1 / 3)))  # Newey-West: the feedback's slow wander
             for lag in range(1, lags + 1):
                 gamma = score[lag:].T @ score[:-lag]
                 meat += (1 - lag / (lags + 1)) * (gamma + gamma.T)
             cov = bread @ meat @ bread * (n / (n - m)) / np.outer(scale, scale)
-    return p, cov, fun
+    return p, [white, cov], fun
+
+
+def _input_errors(t: FloatArray, delta: FloatArray, force: FloatArray, start: int,
+                  radius: float, nu: float, loading: int | None, inputs: Uncertain
+                  ) -> dict[str, float]:
+    """Each value's standard error from the errors of its inputs that the fit takes as
+    exact: first touch (moving the whole overlap) and the force's baseline (the tare's
+    remainder, moving the whole force), with their correlation (from the touch's fit).
+    The sensitivities are refits with each input moved by its standard error: not a common
+    scale, since over a creep the overlap grows and a moved touch changes the curve's shape
+    too (G_1 moves about twice as far as G_e, relatively; ADR 0375)."""
+    def moved(sigma: float, on_touch: bool) -> dict[str, float]:
+        """Half the difference of two refits with one input moved by -+ sigma."""
+        if not (sigma > 0 and math.isfinite(sigma)):
+            return dict.fromkeys(_NAMES, 0.0)
+        ends = [fit_creep(t, delta - s if on_touch else delta, force if on_touch else force - s,
+                          start, radius, nu, loading).values for s in (sigma, -sigma)]
+        return {n: (ends[0][n] - ends[1][n]) / 2 for n in _NAMES}
+
+    try:
+        a, b = moved(inputs.touch_stderr, True), moved(inputs.baseline_stderr, False)
+    except ConfigError:
+        return {}
+    rho = inputs.correlation if math.isfinite(inputs.correlation) else 0.0
+    out = {}
+    for n in _NAMES:
+        var = a[n] ** 2 + b[n] ** 2 + 2 * rho * a[n] * b[n]
+        if math.isfinite(var):
+            out[n] = math.sqrt(max(var, 0.0))
+    return out
+
+
+@dataclass(frozen=True)
+class Uncertain:
+    """What the overlap and force of a creep fit were measured with, beyond the hold's own
+    noise: first touch's standard error (m), the force baseline's (N) and the correlation of
+    the two (from the ramp's first-touch fit; 0 when they come from elsewhere)."""
+
+    touch_stderr: float = 0.0
+    baseline_stderr: float = 0.0
+    correlation: float = 0.0
+
+
+_NAMES = ("G_e", "G_1", "tau_1", "tau_c")
 
 
 def fit_creep(
     t: ArrayLike, delta: ArrayLike, force: ArrayLike, start: int, radius: float,
     nu: float = 0.5, loading: int | None = None, overlap_stderr: float = 0.0,
+    inputs: Uncertain | None = None,
 ) -> CreepFit:
     """Fit the creep of the hold that runs from sample ``start`` to the end of the record:
     ``t`` (s), the overlap ``delta`` (m) and the ``force`` (N); ``radius`` (m) the sphere's;
     ``loading`` the sample where the loading begins (force about 0), None when the record does
-    not show it. ``overlap_stderr`` (m): the overlap's (its first touch's) standard error,
-    which scales the moduli alike: ``1.5 sigma / delta`` is added to G_e's and G_1's relative
-    standard errors (as a hold's, docs/decisions/0160). Raises ConfigError when there is
-    nothing to fit."""
+    not show it. ``overlap_stderr`` (m): the overlap's (its first touch's) standard error;
+    ``inputs`` in its place also the force baseline's, as the ramp's touch fit measured them
+    (the force is then already less that baseline). Both are carried to every value by
+    refitting with the inputs moved (ADR 0375; a hold's moduli take ``1.5 sigma / delta``,
+    docs/decisions/0160). Raises ConfigError when there is nothing to fit."""
     t_all = np.asarray(t, dtype=float)
     d_all = np.asarray(delta, dtype=float)
     f_all = np.asarray(force, dtype=float)
@@ -193,7 +244,7 @@ def fit_creep(
     def residual(p: FloatArray) -> FloatArray:
         return np.asarray((design(float(p[-1])) @ p[:-1] - xb) / unit, dtype=float)
 
-    p, cov, res = _fit(residual, [*map(float, coef), tau0],
+    p, covs, res = _fit(residual, [*map(float, coef), tau0],
                        [1e-12, -np.inf] + ([-np.inf] if free else []) + [1e-6])
     res = res * unit
 
@@ -211,15 +262,16 @@ def fit_creep(
         up[i] += h
         down[i] -= h
         jac[:, i] = (derived(up) - derived(down)) / (2 * h)
-    errs = np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
-    names = ("G_e", "G_1", "tau_1", "tau_c")
-    values = {n: float(v) for n, v in zip(names, values_v, strict=True)}
-    stderr = {n: float(e) for n, e in zip(names, errs, strict=True)}
+    errs = np.fmax(*(np.sqrt(np.maximum(np.diag(jac @ c @ jac.T), 0.0)) for c in covs))
+    values = {n: float(v) for n, v in zip(_NAMES, values_v, strict=True)}
+    stderr = {n: float(e) for n, e in zip(_NAMES, errs, strict=True)}
     values.update(J_e=float(p[0]), dJ=float(p[1]))
     tau_c = float(p[-1])
-    scale = 1.5 * overlap_stderr / float(np.mean(d))
-    for name in ("G_e", "G_1"):
-        stderr[name] = math.hypot(stderr[name], scale * values[name])
+    given = inputs if inputs is not None else Uncertain(overlap_stderr)
+    if given.touch_stderr > 0 or given.baseline_stderr > 0:  # carried through the whole fit
+        for name, err in _input_errors(t_all, d_all, f_all, start, radius, nu, loading,
+                                       given).items():
+            stderr[name] = math.hypot(stderr[name], err)
 
     def reason(check: tuple[str, ...]) -> str:
         for name in check:

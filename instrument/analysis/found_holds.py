@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gelrig.instrument.analysis.creep import CreepFit, fit_creep
+from gelrig.instrument.analysis.creep import CreepFit, Uncertain, fit_creep
 from gelrig.instrument.analysis.hold_analysis import (
     HoldAnalysis,
     NoHold,
@@ -24,10 +24,11 @@ from gelrig.instrument.analysis.hold_analysis import (
     ramp_start,
 )
 from gelrig.instrument.analysis.model_fit import Z95
-from gelrig.instrument.analysis.relaxation import RelaxationFit, with_scale_stderr
+from gelrig.instrument.analysis.relaxation import FirstTouch, RelaxationFit, with_scale_stderr
 from gelrig.instrument.analysis.segments import MIN_DURATION, Segment, find_holds
 from gelrig.instrument.core.errors import ConfigError
 from gelrig.instrument.physics.contact import FloatArray
+from gelrig.instrument.physics.material import Material
 
 #: The columns a record needs for its holds to be found.
 NEEDED = ("t_s", "position_m", "force_N")
@@ -35,6 +36,8 @@ NEEDED = ("t_s", "position_m", "force_N")
 BASELINE_SAMPLES = 200
 #: The creep's loading ends where the force first reaches this fraction of the held force.
 LOADED = 0.97
+#: At most this many refits of a creep's first touch with the fitted material's loading law
+REFINE_TOUCH = 4
 
 
 @dataclass(frozen=True)
@@ -135,27 +138,60 @@ def _relaxation(t: FloatArray, f: FloatArray, z: FloatArray, s: Segment, before:
 def _creep(t: FloatArray, f: FloatArray, z: FloatArray, s: Segment, before: int,
            delta: FloatArray, level_f: float, radius: float, compliance: float, refit: bool,
            touch_err: float) -> FoundHold:
-    """A creep hold: the ramp ends where the force first reaches the held level."""
+    """A creep hold: the ramp ends where the force first reaches the held level. With the
+    ramp recorded from clear of the sphere, its first-touch fit gives the overlap and the
+    force's baseline (what the tare left), each with its error, which the creep fit carries
+    (ADR 0375)."""
     k = s.start - before
     rel = np.flatnonzero(f[before:s.start + 1] >= LOADED * level_f)
     loaded = int(rel[0]) if rel.size else k
-    ov, err = delta + 0.0, touch_err
-    found_touch: tuple[float, float] | None = None
-    if refit and loaded > 0:
-        overlap, ov = measured_overlap(z[before:s.end], f[before:s.end], delta, loaded,
-                                       compliance)
-        err = overlap.stderr
-        if overlap.touch is not None:
-            found_touch = (overlap.first_touch, overlap.stderr)
-    contact = np.flatnonzero(ov[:k] <= 0)
+    tt, zz, ff = t[before:s.end], z[before:s.end], f[before:s.end]
+    ov, inputs, base = delta + 0.0, Uncertain(touch_err), 0.0
+    found: FirstTouch | None = None
+    refit = refit and loaded > 0
+    if refit:
+        overlap, ov = measured_overlap(zz, ff, delta, loaded, compliance)
+        found = overlap.touch
+        inputs = Uncertain(overlap.stderr)
+    if found is not None:
+        base, inputs = found.baseline, _inputs(found)
+
+    def fitted(ov: FloatArray, base: float, inputs: Uncertain) -> CreepFit:
+        contact = np.flatnonzero(ov[:k] <= 0)
+        return fit_creep(tt, ov, ff - base, k, radius,
+                         loading=int(contact[-1]) if contact.size else None, inputs=inputs)
+
     try:
-        fit = fit_creep(t[before:s.end], ov, f[before:s.end], k, radius,
-                        loading=int(contact[-1]) if contact.size else None,
-                        overlap_stderr=err)
+        fit = fitted(ov, base, inputs)
     except ConfigError as exc:
         return FoundHold(s, float(np.mean(ov[k:])), level_f, not_resolved=str(exc))
+    # The ramp's first touch again, with the material just fitted as its loading law in place
+    # of the first-order softening, then the creep again; until the touch settles (ADR 0375)
+    for _ in range(REFINE_TOUCH if found is not None else 0):
+        if found is None or not fit.is_resolved or fit.partial:
+            break
+        material = Material.of(fit.values["G_e"], [(fit.values["G_1"], fit.values["tau_1"])])
+        overlap, ov_next = measured_overlap(zz, ff, delta, loaded, compliance, time=tt,
+                                            material=material)
+        if overlap.touch is None:
+            break
+        try:
+            fit_next = fitted(ov_next, overlap.touch.baseline, _inputs(overlap.touch))
+        except ConfigError:
+            break
+        moved = abs(overlap.touch.position - found.position)
+        ov, fit, found = ov_next, fit_next, overlap.touch
+        if moved <= 0.02 * found.stderr:
+            break
+    touch = None if found is None else (found.position, found.stderr)
     return FoundHold(s, float(np.mean(ov[k:])), level_f, creep=fit,
-                     not_resolved=fit.not_resolved, touch=found_touch)
+                     not_resolved=fit.not_resolved, touch=touch)
+
+
+def _inputs(found: FirstTouch) -> Uncertain:
+    """A touch fit's errors as the creep fit's input errors."""
+    corr = found.correlation if math.isfinite(found.correlation) else 0.0
+    return Uncertain(found.stderr, found.baseline_stderr, corr)
 
 
 def holds_of(cols: Mapping[str, FloatArray], radius: float, resolution: float = 1e-8,

@@ -20,11 +20,13 @@ from gelrig.instrument.analysis.relaxation import (
     RelaxationFit,
     estimate_first_touch,
     fit_hold,
+    loading_law,
     modulus_history,
 )
 from gelrig.instrument.core.binning import bin_means
 from gelrig.instrument.core.errors import ConfigError, GelrigError
 from gelrig.instrument.physics.contact import FloatArray
+from gelrig.instrument.physics.material import Material
 
 #: The ramp must reach this fraction of the planned hold overlap, else there is no hold.
 MIN_DEPTH_FRACTION = 0.9
@@ -74,11 +76,14 @@ def ramp_start(position: FloatArray, hold_start: int) -> int:
 
 
 def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, hold_start: int,
-                     compliance: float = 0.0, trusted: ArrayLike | None = None
+                     compliance: float = 0.0, trusted: ArrayLike | None = None,
+                     time: ArrayLike | None = None, material: Material | None = None
                      ) -> tuple[MeasuredOverlap, FloatArray]:
     """Refit first touch on the ramp before ``hold_start`` and return it with the measured
     overlap at every sample (docs/decisions/0160). ``trusted`` (per sample; default all)
-    leaves samples whose position was flagged out of the refit (ADR 0241).
+    leaves samples whose position was flagged out of the refit (ADR 0241). ``material``
+    (with the samples' ``time``, s): the material as fitted, whose loading law then replaces
+    the first-order softening (ADR 0375).
 
     The recorded ``delta`` is the position less the contact search's estimate, from a fast
     probe with few samples in contact; the ramp crosses the same touch slowly with hundreds.
@@ -98,8 +103,11 @@ def measured_overlap(position: ArrayLike, force: ArrayLike, delta: ArrayLike, ho
         if trusted is not None:
             good &= np.asarray(trusted, dtype=bool)[ramp]
         try:
+            law = None
+            if material is not None and time is not None:
+                law = loading_law(np.asarray(time, dtype=float)[ramp][good], material)
             touch = estimate_first_touch(z[ramp][good], f[ramp][good], relaxing=True,
-                                         quantised=True)
+                                         quantised=True, law=law)
             if not (recorded - 1e-3 < touch.position < float(z[hold_start])):
                 why = (f"the ramp's first touch {touch.position * 1e3:.4f} mm is not on the "
                        "ramp")

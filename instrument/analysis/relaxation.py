@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -382,23 +382,30 @@ def sandwich_errors(jac: ArrayLike, residuals: ArrayLike, at_bound: ArrayLike) -
     ``(J'J)^-1 J' diag(r^2) J (J'J)^-1`` (HC1: times ``n / (n - k)``); NaN where undetermined,
     as :func:`standard_errors`. Right for independent residuals of unequal variance, such as
     a quantised record's, whose spread depends on where the signal sits between two codes."""
+    return np.sqrt(np.maximum(np.diag(sandwich_covariance(jac, residuals, at_bound)), 0.0))
+
+
+def sandwich_covariance(jac: ArrayLike, residuals: ArrayLike, at_bound: ArrayLike
+                        ) -> FloatArray:
+    """The covariance behind :func:`sandwich_errors` (HC1); NaN in the rows and columns of
+    the parameters it does not determine, all NaN when the fit is ill-conditioned."""
     j = np.asarray(jac, dtype=float)
     r = np.asarray(residuals, dtype=float)
-    err = np.full(j.shape[1], math.nan)
+    out = np.full((j.shape[1], j.shape[1]), math.nan)
     scale = np.linalg.norm(j, axis=0)
     keep = np.isfinite(scale) & (scale > 0) & ~np.asarray(at_bound, dtype=bool)
     n, k = j.shape[0], int(keep.sum())
     if not keep.any() or n <= k or not np.all(np.isfinite(r)):
-        return err
+        return out
     js = j[:, keep] / scale[keep]
     _, sv, vt = np.linalg.svd(js, full_matrices=False)
     if sv[-1] <= 0 or sv[0] / sv[-1] > MAX_CONDITION:
-        return err
+        return out
     bread = (vt.T / sv**2) @ vt
     score = js * r[:, None]
-    cov = bread @ (score.T @ score) @ bread * (n / (n - k))
-    err[keep] = np.sqrt(np.maximum(np.diag(cov), 0.0)) / scale[keep]
-    return err
+    cov = bread @ (score.T @ score) @ bread * (n / (n - k)) / np.outer(scale[keep], scale[keep])
+    out[np.ix_(keep, keep)] = cov
+    return out
 
 
 def standard_errors(jac: ArrayLike, variance: float, at_bound: ArrayLike) -> FloatArray:
@@ -585,10 +592,35 @@ class FirstTouch:
     softening: float = 0.0
     #: standard error of ``position`` (m) from the fit's covariance; NaN if undetermined
     stderr: float = math.nan
+    #: standard error of ``baseline`` (N), and the correlation of the two estimates' errors
+    baseline_stderr: float = math.nan
+    correlation: float = math.nan
+
+
+def loading_law(t: ArrayLike, material: Material) -> Callable[[FloatArray], FloatArray]:
+    """The force's shape along a loading record at times ``t`` (s): by the hereditary
+    integral (physics.md, section 1) a contact that only grows from none carries
+    ``F = K (G_e x + sum G_i h_i)``, ``x = d^1.5``, ``h_i = int exp(-(t - s)/tau_i) dx(s)``.
+    Returns ``d -> x + sum (G_i/G_e) h_i`` for overlaps ``d`` (m) at those times: the
+    relaxing law of ``material`` that :func:`estimate_first_touch` can fit exactly, where
+    ``1 + c d`` is a first-order stand-in."""
+    ts = np.asarray(t, dtype=float)
+    dt = np.diff(ts, prepend=ts[0] if ts.size else 0.0)
+    terms = [(term.g / material.g_e, term.tau) for term in material.relax]
+
+    def law(d: FloatArray) -> FloatArray:
+        x = d * np.sqrt(d)
+        out = x.copy()
+        for ratio, tau in terms:
+            out += ratio * hereditary(dt, x, tau)
+        return np.asarray(out, dtype=float)
+
+    return law
 
 
 def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool = False,
-                         quantised: bool = False) -> FirstTouch:
+                         quantised: bool = False,
+                         law: Callable[[FloatArray], FloatArray] | None = None) -> FirstTouch:
     """Where a plate first touched a sphere, from its force-displacement approach curve.
 
     Fits ``F = A d^1.5 (1 + c d) + b`` with ``d = max(z - z0, 0)`` by least squares, z0 free
@@ -602,6 +634,11 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool =
     (its noise read off the first fit's residuals, docs/decisions/0270): near touch the force
     is below one code, where the codes' mean is not the force, and a plain fit puts z0 early
     by several times its standard error when the noise is below a code.
+
+    ``law``: the force's shape as a function of the overlap at these samples (e.g.
+    :func:`loading_law` from a fit of the material), fitted as ``F = A law(d) + b`` in place
+    of ``d^1.5 (1 + c d)``: on a ramp about as long as the material's relaxation time the
+    first-order softening leaves z0 early by about a standard error (ADR 0375).
     """
     z = np.asarray(position, dtype=float)
     f = np.asarray(force, dtype=float)
@@ -621,13 +658,27 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool =
     z0_guess = -intercept / slope
     reach = max(float(np.max(z)) - z0_guess, 1e-9)  # travel past touch, for the scales
 
-    def residual(p: FloatArray) -> FloatArray:
-        d = np.maximum(z - p[0], 0.0)
-        soft = 1.0 + p[3] * d if relaxing else 1.0
-        return p[1] * d * np.sqrt(d) * soft + p[2] - f
+    if law is not None:
+        relaxing = False
+        shape = law
 
-    start = [z0_guess, slope**1.5, 0.0]
-    scale = [1e-5, slope**1.5, max(top, 1e-9) * 1e-2]
+        def residual(p: FloatArray) -> FloatArray:
+            return p[1] * shape(np.maximum(z - p[0], 0.0)) + p[2] - f
+
+        # the amplitude and baseline at the guessed touch, by linear least squares
+        basis = np.column_stack([shape(np.maximum(z - z0_guess, 0.0)), np.ones(z.size)])
+        amp0 = float(np.linalg.lstsq(basis, f, rcond=None)[0][0])
+        amp0 = amp0 if amp0 > 0 else slope**1.5
+    else:
+        amp0 = slope**1.5
+
+        def residual(p: FloatArray) -> FloatArray:
+            d = np.maximum(z - p[0], 0.0)
+            soft = 1.0 + p[3] * d if relaxing else 1.0
+            return p[1] * d * np.sqrt(d) * soft + p[2] - f
+
+    start = [z0_guess, amp0, 0.0]
+    scale = [1e-5, amp0, max(top, 1e-9) * 1e-2]
     bounds = ([-np.inf] * 3, [np.inf] * 3)
     if relaxing:  # a gentle first-order softening, |c d| < 0.5 over the curve
         start.append(0.0)
@@ -635,7 +686,7 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool =
         bounds = ([*bounds[0], -0.5 / reach], [*bounds[1], 0.5 / reach])
     result = least_squares(residual, start, bounds=bounds, x_scale=scale)
     lattice = find_lattice(f) if quantised else None
-    err = _first_stderr(result.jac, result.fun)
+    cov = _touch_covariance(result.jac, result.fun)
     if lattice is not None:
         plain = residual
         quantiser = DitheredQuantiser(lattice, fit_sigma(lattice, plain(result.x) + f, f))
@@ -645,24 +696,27 @@ def estimate_first_touch(position: ArrayLike, force: ArrayLike, relaxing: bool =
             return model + quantiser.bias(model) - f
 
         result = least_squares(residual, result.x, bounds=bounds, x_scale=scale)
-        err = float(sandwich_errors(result.jac, result.fun, np.zeros(result.x.size, bool))[0])
+        cov = sandwich_covariance(result.jac, result.fun, np.zeros(result.x.size, bool))
     z0, amp, base = (float(v) for v in result.x[:3])
+    err, base_err = (math.sqrt(max(float(cov[i, i]), 0.0)) if math.isfinite(cov[i, i])
+                     else math.nan for i in (0, 2))
+    corr = float(cov[0, 2]) / (err * base_err) if err > 0 and base_err > 0 else math.nan
     return FirstTouch(z0, amp, base, float(np.sqrt(np.mean(result.fun**2))),
                       int(np.count_nonzero(z > z0)), float(result.x[3]) if relaxing else 0.0,
-                      err)
+                      err, base_err, corr)
 
 
-def _first_stderr(jac: FloatArray, residuals: FloatArray) -> float:
-    """Standard error of the first parameter of a least-squares fit from its Jacobian and
-    residuals (white noise); NaN when the covariance is singular."""
+def _touch_covariance(jac: FloatArray, residuals: FloatArray) -> FloatArray:
+    """Covariance of a least-squares fit's parameters from its Jacobian and residuals (white
+    noise); all NaN when it is singular."""
     n, k = jac.shape
+    out = np.full((k, k), math.nan)
     norms = np.linalg.norm(jac, axis=0)
     if n <= k or not np.all(np.isfinite(jac)) or not np.all(norms > 0):
-        return math.nan
+        return out
     scaled = jac / norms  # columns of unit length: the conditioning is the fit's, not units'
     normal = scaled.T @ scaled
     if np.linalg.cond(normal) > 1e12:
-        return math.nan
+        return out
     variance = float(np.sum(residuals**2)) / (n - k)
-    return float(math.sqrt(max(variance * float(np.linalg.inv(normal)[0, 0]), 0.0))
-                 / norms[0])
+    return np.asarray(variance * np.linalg.inv(normal) / np.outer(norms, norms), dtype=float)

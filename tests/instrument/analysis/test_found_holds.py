@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gelrig.instrument.analysis.creep import fit_creep
+from gelrig.instrument.analysis.creep import Uncertain, fit_creep
 from gelrig.instrument.analysis.segments import find_holds
 from gelrig.instrument.physics.contact import hereditary, hertz_prefactor
 
@@ -91,3 +91,28 @@ def test_without_the_loading_g_1_is_not_a_result() -> None:
     assert abs(fit.values["G_e"] - G_E) < max(3 * fit.stderr["G_e"], 2e-3 * G_E)
     if fit.partial:  # G_1 and tau_1 then show no values
         assert np.isnan(fit.value("G_1")) and np.isnan(fit.value("tau_1"))
+
+
+def test_the_creep_fit_carries_the_touchs_and_the_baselines_errors() -> None:
+    """ADR 0375: first touch and the force's baseline are inputs the fit takes as exact; their
+    standard errors are carried by refits. A baseline error moves G_e by its share of the
+    held force (G ~ F / delta^1.5), a touch error by 1.5 of its share of the overlap."""
+    cols = creep_record(2e-4)
+    (hold,) = find_holds(cols["t_s"], cols["position_m"], cols["force_N"], cols["delta_m"],
+                         STEP)
+    args = (cols["t_s"][:hold.end], cols["delta_m"][:hold.end], cols["force_N"][:hold.end],
+            hold.start, R)
+    bare = fit_creep(*args, loading=0)
+    sigma_b, sigma_z = 20e-6, 0.4e-6
+    with_base = fit_creep(*args, loading=0, inputs=Uncertain(0.0, sigma_b))
+    with_touch = fit_creep(*args, loading=0, inputs=Uncertain(sigma_z, 0.0))
+    force = 0.05
+    overlap = float(np.mean(cols["delta_m"][hold.start:hold.end]))
+    for fit, share in ((with_base, sigma_b / force), (with_touch, 1.5 * sigma_z / overlap)):
+        added = np.sqrt(fit.stderr["G_e"] ** 2 - bare.stderr["G_e"] ** 2) / G_E
+        assert added == pytest.approx(share, rel=0.1)
+    # a later touch raises G_e and a larger baseline lowers it: errors correlated positively
+    # partly cancel, negatively add; uncorrelated lie between
+    both = {rho: fit_creep(*args, loading=0, inputs=Uncertain(sigma_z, sigma_b, rho))
+            for rho in (-1.0, 0.0, 1.0)}
+    assert both[1.0].stderr["G_e"] < both[0.0].stderr["G_e"] < both[-1.0].stderr["G_e"]

@@ -9,6 +9,7 @@ from gelrig.instrument.analysis.relaxation import (
     fit_hold,
     fit_relaxation,
     format_stderr,
+    loading_law,
     modulus_history,
     standard_errors,
 )
@@ -183,3 +184,23 @@ def test_first_touch_on_a_slow_ramp_allows_for_relaxation():
     noisy = [estimate_first_touch(z, force + rng.normal(0.0, 2e-4, z.size), relaxing=True)
              .position - touch for _ in range(8)]
     assert abs(float(np.mean(noisy))) < 0.3e-6 and max(map(abs, noisy)) < 1e-6
+
+
+def test_first_touch_on_a_ramp_as_long_as_tau_takes_the_materials_own_loading_law():
+    """A material relaxing within the ramp (tau 40 s, the paper's 30 s ramp): the first-order
+    softening leaves the touch early by several times its standard error; the fitted
+    material's loading law (ADR 0375) puts it where it is."""
+    touch, fast = 6.2e-3, Material.of(7000.0, [(2500.0, 40.0)])
+    t = np.arange(0.0, (D + 1e-4) / V, 0.01)
+    z = touch - 1e-4 + V * t
+    force = normal_force(t, np.maximum(z - touch, 0.0), fast, R)
+    law = loading_law(t, fast)
+    assert estimate_first_touch(z, force, relaxing=True).position - touch < -1e-6
+    assert estimate_first_touch(z, force, law=law).position == pytest.approx(touch, abs=1e-9)
+    rng = np.random.default_rng(5)
+    found = [estimate_first_touch(z, force + rng.normal(0.0, 2e-4, z.size), law=law)
+             for _ in range(20)]
+    errors = np.array([f.position - touch for f in found])
+    stderr = float(np.median([f.stderr for f in found]))
+    assert abs(float(errors.mean())) < 3 * stderr / np.sqrt(errors.size)  # no bias
+    assert 0.7 < float(errors.std(ddof=1)) / stderr < 1.3  # and an honest standard error
