@@ -73,6 +73,7 @@ Handler = Callable[[argparse.Namespace], int]
 def build_parser() -> Parser:
     from gelrig.commands import (
         analyze,
+        bringup,
         campaign,
         demo,
         fit,
@@ -98,6 +99,7 @@ def build_parser() -> Parser:
     campaign.register(sub)
     runs.register(sub)
     validate.register(sub)
+    bringup.register(sub)
     _register_sim(sub)
     return parser
 

@@ -179,8 +179,10 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
         raise
     # stage.close and force.close run in CompressionRig.close; the rest (servers) after them
     hooks = [c for c in closers if c not in (stage.close, force.close)]
-    return CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,
-                          list(reversed(hooks)))
+    rig = CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,
+                         list(reversed(hooks)))
+    rig.twin = twin
+    return rig
 
 
 __all__ = ["build_rig", "build_twin", "twin_spec"]

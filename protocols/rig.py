@@ -113,6 +113,9 @@ class CompressionRig:
     first_touch: float | None = field(default=None, init=False)
     #: safe stop first: armed by the runner while a step runs (protocols/fence.py)
     fence: Fence = field(default_factory=Fence, init=False)
+    #: the simulated instruments behind a simulated rig (the factory sets it): what bring-up's
+    #: twin operator reads its answers from (issue 30); None on a real rig
+    twin: object | None = field(default=None, init=False, repr=False)
 
     kind = "compression"
 
