@@ -88,10 +88,12 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
     from gelrig.simulators.twins.shear import shear_simulator
 
     entry, truth = spec.rheometer, spec.simulator
+    twin: object | None = None
     closers: list[Callable[[], None]] = []
     try:
         if entry.simulated:
             sim = shear_simulator(clock, truth, entry.config)
+            twin = sim
             if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"
@@ -112,7 +114,9 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
     except BaseException:
         _close_all(closers)
         raise
-    return ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
+    rig = ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
+    rig.twin = twin
+    return rig
 
 
 def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = False

@@ -29,7 +29,7 @@ from gelrig.drivers.mcr501.codec import (
     decode_reply,
     decode_stream_header,
 )
-from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
+from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS, split_key
 from gelrig.drivers.mcr501.transport import LineTransport, VisaTransport
 from gelrig.instrument.contracts.rheometer import RheometerConfig, RheometerStatus, StreamBlock
 from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
@@ -394,6 +394,26 @@ class MCR501:
     def hold(self) -> None:
         self._transact("hold")
         self._maybe_rotating = False
+
+    @guarded
+    def exchange(self, line: str) -> list[str]:
+        """Send ``line`` as written and return its reply lines, unchecked: the reply line,
+        and after a ``#DATA[count;remaining]`` header its ``count`` record lines. What
+        bring-up checks the command table with (issue 30); a ``:ROT`` line counts as a
+        rotation until a stop or hold is answered, so a fault still stops the arm first."""
+        if line.startswith(":ROT"):
+            self._maybe_rotating = True
+        self._send(line)
+        reply = self._transport.read_line()
+        out = [reply]
+        head = split_key(reply)
+        if head is not None and head[0] == "#DATA":
+            count = head[1].split(";")[0]
+            if count.isdigit() and int(count):
+                out += self._transport.read_lines(int(count))
+        if line.split("[")[0] in (":STOP", ":HOLD") and reply.endswith("[OK]"):
+            self._maybe_rotating = False
+        return out
 
     # -- readings --------------------------------------------------------------------------
 

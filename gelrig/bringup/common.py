@@ -13,6 +13,7 @@ from gelrig.instrument.core.errors import GelrigError
 from gelrig.protocols.control import RunControl
 from gelrig.protocols.manual_motion import guarded
 from gelrig.protocols.rig import Rig
+from gelrig.protocols.rigfile import RigSpec
 
 
 class BringupStopped(GelrigError):
@@ -27,6 +28,8 @@ class Session:
 
     rig: Rig
     operator: Operator
+    #: the rig file as read (what the rig believes about its instruments)
+    spec: RigSpec | None = None
     control: RunControl = field(default_factory=RunControl)
     proposed: list[Confirmed] = field(default_factory=list)
     #: what each routine found, one line each (the report printed at the end)

@@ -18,7 +18,9 @@ import numpy as np
 from gelrig.bringup.common import Session, percent
 from gelrig.bringup.operator import GRAVITY, MASS_TOLERANCE
 from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.errors import GelrigError
 from gelrig.protocols.rig import CompressionRig
+from gelrig.protocols.rigfile import CompressionRigSpec
 
 #: Sample rate (Hz) and length (s) of the unloaded record.
 NOISE_RATE = 1000.0
@@ -53,7 +55,7 @@ def acquire(rig: CompressionRig, seconds: float, rate: float = NOISE_RATE) -> np
     rig.force.stop()
     rig.force.start(rate)
     try:
-        n = int(round(seconds * rate))
+        n = round(seconds * rate)
         per = int(rate)
         parts = [rig.force.read_block(min(per, n - i)).volts for i in range(0, n, per)]
     finally:
@@ -92,7 +94,10 @@ class LoadCellBringup:
         assert isinstance(rig, CompressionRig)
         self.s = session
         self.rig = rig
-        self.chain: LoadCellChain = rig.force.chain
+        spec = session.spec
+        if not isinstance(spec, CompressionRigSpec):
+            raise GelrigError("load-cell bring-up needs the rig file's [force.chain]")
+        self.chain: LoadCellChain = spec.force.chain
         self.noise: Noise | None = None
         self.sensitivity: tuple[float, float] | None = None  # V/N and its u
 

@@ -12,13 +12,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.core.errors import ConfigError
 from gelrig.instrument.core.units import to_si
+
+if TYPE_CHECKING:  # the simulators are imported by whoever builds the twin
+    from gelrig.simulators.twins.compression import CompressionTwin
 
 #: Standard gravity (m/s^2): a mass's weight. The local value differs by up to ~0.3 %;
 #: bring-up records that it used this one.
@@ -157,7 +160,7 @@ class TwinOperator:
     question is answered yes but those whose key is in ``declines``.
     """
 
-    twin: object
+    twin: CompressionTwin
     clock: Clock
     seed: int = 0
     declines: Iterable[str] = ()
@@ -173,8 +176,7 @@ class TwinOperator:
             self.said = []
 
     def _plate(self) -> float:
-        plate = getattr(self.twin, "plate")
-        return float(plate(np.array([self.clock.now()]))[0])
+        return float(self.twin.plate(np.array([self.clock.now()]))[0])
 
     def say(self, text: str) -> None:
         assert self.said is not None
@@ -200,14 +202,14 @@ class TwinOperator:
 
     def load_mass(self, nominal: float) -> float:
         true = nominal * (1.0 + float(self._rng.uniform(-MASS_TOLERANCE, MASS_TOLERANCE)))
-        getattr(self.twin, "signal").dead_load = true * GRAVITY
+        self.twin.signal.dead_load = true * GRAVITY
         return nominal
 
     def unload(self) -> None:
-        getattr(self.twin, "signal").dead_load = 0.0
+        self.twin.signal.dead_load = 0.0
 
     def conditioner_gain(self, believed: float) -> float:
-        return float(getattr(self.twin, "signal").chain.gain)
+        return float(self.twin.signal.chain.gain)
 
 
 __all__ = ["AWAY", "GAUGE_ERROR", "GRAVITY", "MASS_TOLERANCE", "TOWARD", "ConsoleOperator",

@@ -46,14 +46,20 @@ def connect(spec: RigSpec) -> tuple[Rig, Clock]:
     return build_rig(spec, clock, in_process=spec.simulated), clock
 
 
+def check_twin(spec: RigSpec) -> None:
+    """The twin can play the operator only on a fully simulated rig."""
+    if not spec.simulated:
+        raise ConfigError("--operator", "twin", "needs a fully simulated rig (every "
+                          "transport = \"simulator\")", spec.source)
+
+
 def twin_operator(rig: Rig, clock: Clock, source: str, seed: int = 0,
                   declines: tuple[str, ...] = ()) -> TwinOperator:
-    """The twin as the operator of a simulated compression rig."""
-    twin = getattr(rig, "twin", None)
-    if twin is None:
-        raise ConfigError("--operator", "twin", "needs a fully simulated compression rig "
-                          "(every transport = \"simulator\")", source)
-    return TwinOperator(twin, clock, seed=seed, declines=declines)
+    """The twin as the operator of a simulated rig."""
+    if rig.twin is None:
+        raise ConfigError("--operator", "twin", "needs a fully simulated rig (every "
+                          "transport = \"simulator\")", source)
+    return TwinOperator(rig.twin, clock, seed=seed, declines=declines)  # type: ignore[arg-type]
 
 
 def routines(session: Session) -> list[Callable[[], None]]:
@@ -78,7 +84,7 @@ def run(rig_file: Path, operator: Operator | Callable[[Rig, Clock, str], Operato
     rig, clock = connect(spec)
     try:
         who = operator if isinstance(operator, Operator) else operator(rig, clock, spec.source)
-        session = Session(rig, who)
+        session = Session(rig, who, spec)
         who.say(f"Bring-up of {spec.name} ({spec.source}); confirmed values go to {out}, "
                 "each only after your yes.")
         for routine in routines(session):
@@ -101,7 +107,8 @@ def run(rig_file: Path, operator: Operator | Callable[[Rig, Clock, str], Operato
 
 
 def _write(session: Session, rig_file: Path, out: Path) -> Outcome:
-    accepted, declined = [], []
+    accepted: list[confirmed_file.Confirmed] = []
+    declined: list[confirmed_file.Confirmed] = []
     for item in session.proposed:
         question = (f"Write {item.name} = {item.toml_value()} ({item.method}; u {item.uncertainty})"
                     " into the confirmed rig file?")
@@ -115,4 +122,4 @@ def _write(session: Session, rig_file: Path, out: Path) -> Outcome:
     return Outcome(session.findings, path, accepted, declined)
 
 
-__all__ = ["Outcome", "connect", "default_out", "run", "routines", "twin_operator"]
+__all__ = ["Outcome", "check_twin", "connect", "default_out", "routines", "run", "twin_operator"]

@@ -28,12 +28,15 @@ def cmd_bringup(args: argparse.Namespace) -> int:
     from gelrig.bringup.operator import ConsoleOperator, Operator
     from gelrig.instrument.core.clock import Clock
     from gelrig.protocols.rig import Rig
+    from gelrig.protocols.rigfile import load_rig
 
     def make(rig: Rig, clock: Clock, source: str) -> Operator:
         if args.operator == "twin":
             return runner.twin_operator(rig, clock, source, args.seed)
         return ConsoleOperator(args.name)
 
+    if args.operator == "twin":
+        runner.check_twin(load_rig(args.rig))
     outcome = runner.run(Path(args.rig), make, Path(args.out) if args.out else None)
     print("\nFound:")
     for line in outcome.findings:
