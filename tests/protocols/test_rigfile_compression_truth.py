@@ -69,3 +69,23 @@ def test_a_bad_hidden_fact_is_one_line_naming_field_value_and_allowed(key, value
     text = str(err.value)
     assert text.startswith(message) and "\n" not in text
     assert "allowed" in text or "must" in text or "in (" in text or "[" in text
+
+
+def _with_chain_noise(**simulator):
+    table = {"rig": {"kind": "compression"}, "stage": {"transport": "simulator"},
+             "force": {"transport": "simulator", "chain": {"noise": "0.35 mN"}},
+             "simulator": simulator}
+    spec = parse_rig(table, "rig.toml")
+    assert isinstance(spec, CompressionRigSpec)
+    return spec
+
+
+def test_the_noise_measured_at_bring_up_is_the_twins():
+    spec = _with_chain_noise()
+    assert spec.force.chain.noise == pytest.approx(0.35e-3)
+    assert spec.simulator.noise == pytest.approx(0.35e-3)
+
+
+def test_a_simulator_noise_given_stays_the_truth():
+    assert _with_chain_noise(noise="0.1 mN").simulator.noise == pytest.approx(0.1e-3)
+    assert compression().noise == pytest.approx(0.2e-3)  # no measurement: the default
