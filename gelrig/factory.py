@@ -50,9 +50,11 @@ def twin_spec(spec: RigSpec) -> RigSpec:
 
 def build_twin(spec: RigSpec) -> Rig:
     """The rig's twin on a fresh virtual clock: what ``gelrig plan`` rehearses on."""
+    from gelrig.instrument.core import wire
     from gelrig.instrument.core.clock import VirtualClock
 
-    return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
+    with wire.suspended():  # a rehearsal is not part of a recorded session (issue 30)
+        return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
 
 
 def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:

@@ -1,0 +1,95 @@
+"""Wire log and replay (issue 30): a short compression run recorded exchange by exchange,
+then replayed through the same drivers with no instrument behind them, gives the same data."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from gelrig.instrument.core import wire
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import parse_protocol
+from gelrig.terminal import record_run
+
+STEPS = [{"kind": "compression_contact_search", "name": "contact search", "probe": "0.5 mm",
+          "speed": "0.3 mm/s", "threshold": "5 mN", "retract": "0.5 mm", "confirm": 2,
+          "rate": "100 Hz"},
+         {"kind": "ramp_hold", "diameter": "18.63 mm", "name": "ramp and hold", "hold": "5 s",
+          "rate": "100 Hz", "terms": 1}]
+
+
+def _run(folder, name):
+    protocol = parse_protocol({"protocol": {"name": "touch", "rig": "compression"},
+                               "step": STEPS})
+    spec = load_rig(default_rig("compression"))
+    run = RunDirectory.create(folder / name, {"protocol": protocol.table, "rig": spec.table})
+    state, _ = record_run(protocol, spec, VirtualClock(), run, show=False)
+    return state, run.path
+
+
+def _columns(path):
+    out = {}
+    for f in sorted((path / "steps").glob("*.h5")):
+        with h5py.File(f) as h5:
+            for name in h5:
+                if isinstance(h5[name], h5py.Dataset):
+                    out[f"{f.name}/{name}"] = h5[name][()]
+    return out
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("wire")
+    with wire.recording(wire.WireLog(folder / "wire.jsonl", {"argv": ["test"]})) as log:
+        state, path = _run(folder, "original")
+    assert state is RunState.COMPLETED
+    return folder, path, log
+
+
+def test_a_replayed_run_gives_the_same_data_and_uses_every_exchange(recorded):
+    folder, original, log = recorded
+    assert log.records > 1000 and not log.full
+    replay = wire.Replay(log.path)
+    with wire.replaying(replay):
+        state, path = _run(folder, "replay")
+    assert state is RunState.COMPLETED
+    assert replay.left() == {}
+    assert replay.served() == replay.recorded
+    assert set(replay.recorded) == {"kdc101", "usb6001"}
+    first, again = _columns(original), _columns(path)
+    assert first.keys() == again.keys() and len(first) >= 12
+    for key, values in first.items():
+        assert np.array_equal(values, again[key], equal_nan=True), key
+
+
+def test_a_replay_that_diverges_says_where(recorded, tmp_path):
+    _, _, log = recorded
+    lines = log.path.read_text().splitlines()
+    # the recording's first stage write (HW_NO_FLASH_PROGRAMMING) becomes another message
+    at = next(i for i, line in enumerate(lines) if '"k":"write"' in line)
+    lines[at] = lines[at].replace('"b":"180000005001"', '"b":"050000005001"')
+    changed = tmp_path / "changed.jsonl"
+    changed.write_text("\n".join(lines) + "\n")
+    replay = wire.Replay(changed)
+    with wire.replaying(replay), pytest.raises(Exception) as err:
+        _run(tmp_path, "diverged")
+    text = str(err.value)
+    assert "kdc101 call 2 at recorded host time 0.100000 s" in text
+    assert "the driver sent write '180000005001'" in text
+    assert "the recording has write '050000005001'" in text
+
+
+def test_a_log_is_bounded(tmp_path):
+    log = wire.WireLog(tmp_path / "w.jsonl", max_bytes=600)
+    for i in range(100):
+        log.add("kdc101", "write", i, i, b="00" * 10)
+    log.close()
+    text = (tmp_path / "w.jsonl").read_text()
+    assert log.full and len(text) <= 600
+    assert text.rstrip().endswith(f'"records":{log.records}}}')
+    replay = wire.Replay(tmp_path / "w.jsonl")
+    assert replay.truncated and replay.recorded["kdc101"] == log.records
