@@ -117,6 +117,9 @@ def _register_sim(sub: argparse._SubParsersAction) -> None:
     for name, served in SERVED.items():
         p = which.add_parser(name, help=served.summary, populate=served.add_arguments)
         p.set_defaults(handler=functools.partial(_serve, served.module))
+    from gelrig.commands import replay
+
+    replay.register(sim_sub)
 
 
 def _serve(module_name: str, args: argparse.Namespace) -> int:
@@ -140,6 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if handler is None:
             parser.print_help()
             return 2
+        args.argv = args_list  # what a wire log's header records (gelrig sim replay)
         return handler(args)
     except UsageError as exc:
         if debug:

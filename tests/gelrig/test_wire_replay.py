@@ -93,3 +93,60 @@ def test_a_log_is_bounded(tmp_path):
     assert text.rstrip().endswith(f'"records":{log.records}}}')
     replay = wire.Replay(tmp_path / "w.jsonl")
     assert replay.truncated and replay.recorded["kdc101"] == log.records
+
+
+PROTOCOL = """\
+[protocol]
+name = "touch"
+rig = "compression"
+
+[sample]
+name = "gel"
+diameter = "18.63 mm"
+
+[[step]]
+kind = "compression_contact_search"
+name = "contact search"
+probe = "0.5 mm"
+speed = "0.3 mm/s"
+threshold = "5 mN"
+retract = "0.5 mm"
+confirm = 2
+rate = "100 Hz"
+
+[[step]]
+kind = "ramp_hold"
+name = "ramp and hold"
+hold = "5 s"
+rate = "100 Hz"
+terms = 1
+"""
+
+
+@pytest.mark.slow
+def test_gelrig_run_wire_log_then_sim_replay(tmp_path, capsys, monkeypatch):
+    from gelrig.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "touch.toml").write_text(PROTOCOL)
+    assert main(["run", "touch.toml", "--out", "run1", "--wire-log", "--no-rehearse"]) == 0
+    log = tmp_path / "run1" / "wire.jsonl"
+    assert log.is_file() and not list(tmp_path.glob(".*wire.jsonl"))
+    capsys.readouterr()
+    assert main(["sim", "replay", str(log)]) == 0
+    out = capsys.readouterr().out
+    assert "recorded exchanges served, every one as recorded" in out
+    first, again = _columns(tmp_path / "run1"), _columns(tmp_path / "run1-replay")
+    assert first.keys() == again.keys()
+    assert all(np.array_equal(v, again[k], equal_nan=True) for k, v in first.items())
+
+
+def test_sim_replay_of_something_else_is_one_line_exit_2(tmp_path, capsys):
+    from gelrig.cli import main
+
+    log = tmp_path / "w.jsonl"
+    wire.WireLog(log, {"argv": ["plan", "paper:compression"]}).close()
+    assert main(["sim", "replay", str(log)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "recorded by gelrig run --wire-log" in err and "\n" not in err
+    assert main(["sim", "replay", str(tmp_path / "missing.jsonl")]) == 2
