@@ -33,6 +33,7 @@ from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS, sp
 from gelrig.drivers.mcr501.transport import LineTransport, VisaTransport
 from gelrig.instrument.contracts.rheometer import RheometerConfig, RheometerStatus, StreamBlock
 from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
+from gelrig.instrument.core import wire
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.core.errors import (
     Disconnected,
@@ -125,13 +126,13 @@ class MCR501:
         if self._link is not None:
             return self
         given = self._given
+        # recorded or replayed while a wire log is active (issue 30)
         if isinstance(given, str):
-            self._link = VisaTransport(given, timeout=self._config.timeout,
-                                       backend=self._backend,
-                                       resource_manager=self._resource_manager,
-                                       baud_rate=self._baud_rate)
+            self._link = wire.line_transport("mcr501", self._clock, lambda: VisaTransport(
+                given, timeout=self._config.timeout, backend=self._backend,
+                resource_manager=self._resource_manager, baud_rate=self._baud_rate))
         else:
-            self._link = given
+            self._link = wire.line_transport("mcr501", self._clock, lambda: given)
         try:
             self.identity = self.identify()
         except BaseException:
@@ -155,9 +156,9 @@ class MCR501:
         before = self.identity
         self._release()
         self._resync = False
-        self._link = VisaTransport(given, timeout=self._config.timeout, backend=self._backend,
-                                   resource_manager=self._resource_manager,
-                                   baud_rate=self._baud_rate)
+        self._link = wire.line_transport("mcr501", self._clock, lambda: VisaTransport(
+            given, timeout=self._config.timeout, backend=self._backend,
+            resource_manager=self._resource_manager, baud_rate=self._baud_rate))
         try:
             identity = self.identify()
         except BaseException:

@@ -1,13 +1,14 @@
 """Wire log and replay (issue 30): every exchange with an instrument, recorded with its host
 time, and served back to the same driver later.
 
-A driver opens its link through :func:`serial_port` (KDC101 bytes) or :func:`grpc_channel`
-(USB-6001 RPCs). Normally these return the link itself. While :func:`recording` is active
-they wrap it so that each call (a write, a read and what it returned, ``in_waiting``, a purge;
-an RPC's method, request and response or error) is appended to a :class:`WireLog` with the
-driver's clock time after the call. While :func:`replaying` is active they return a stand-in
-that checks each call against the next recorded one of that instrument, answers what the
-instrument answered, and moves a virtual clock to the recorded time (so the driver sees the
+A driver opens its link through :func:`serial_port` (KDC101 bytes), :func:`grpc_channel`
+(USB-6001 RPCs) or :func:`line_transport` (MCR 501 lines). Normally these return the link
+itself. While :func:`recording` is active they wrap it so that each call (a write, a read and
+what it returned, ``in_waiting``, a purge; an RPC's method, request and response or error; a
+line and a failure) is appended to a :class:`WireLog` with the driver's clock time before and
+after the call. While :func:`replaying` is active they return a stand-in that checks each call
+against the next recorded one of that instrument, answers what the instrument answered, and
+moves a virtual clock to the recorded time (so the driver sees the
 same timing); the first call that differs raises :class:`ReplayDiverged` naming the
 instrument, the call's index, its recorded host time and both sides.
 
@@ -156,6 +157,8 @@ def _describe(record: dict[str, Any]) -> str:
     kind = record["k"]
     if kind in ("write", "read"):
         return f"{kind} {record.get('b', '')!r}"
+    if kind in ("writeline", "readline", "readlines"):
+        return f"{kind} {record.get('l', '')!r}"
     if kind == "rpc":
         return f"rpc {record.get('m')} request {record.get('q', '')[:64]!r}"
     return f"{kind} {record.get('n', '')}"
@@ -463,6 +466,108 @@ def grpc_channel(name: str, clock: Clock, channel: T) -> T:
     return channel
 
 
-__all__ = ["MAX_BYTES", "RecordingChannel", "RecordingPort", "Replay", "ReplayChannel",
-           "ReplayDiverged", "ReplayPort", "WireLog", "active", "grpc_channel", "recording",
-           "replaying", "serial_port", "suspended"]
+# ---- line transports (the MCR 501) --------------------------------------------------------
+
+def _error_fields(exc: BaseException) -> dict[str, str]:
+    return {"type": type(exc).__name__, "text": str(exc)}
+
+
+def _raise_recorded(fields: dict[str, str]) -> None:
+    from gelrig.instrument.core import errors
+
+    kind = getattr(errors, fields.get("type", ""), None)
+    if not (isinstance(kind, type) and issubclass(kind, Exception)):
+        kind = errors.InstrumentError
+    raise kind(fields.get("text", ""))
+
+
+class RecordingLines:
+    """A line transport whose lines (and failures) are logged."""
+
+    def __init__(self, inner: Any, log: WireLog, name: str, clock: Clock):
+        self.inner, self.log, self.name, self.clock = inner, log, name, clock
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self.inner, attr)
+
+    def _logged(self, kind: str, fn: Callable[[], T], **fields: Any) -> T:
+        start = self.clock.now()
+        try:
+            out = fn()
+        except Exception as exc:
+            self.log.add(self.name, kind, start, self.clock.now(), e=_error_fields(exc),
+                         **fields)
+            raise
+        result = {"l": out} if kind in ("readline", "readlines") else {}
+        self.log.add(self.name, kind, start, self.clock.now(), **fields, **result)
+        return out
+
+    def write_line(self, line: str) -> None:
+        self._logged("writeline", lambda: self.inner.write_line(line), l=line)
+
+    def read_line(self) -> str:
+        return self._logged("readline", self.inner.read_line)
+
+    def read_lines(self, n: int) -> list[str]:
+        return self._logged("readlines", lambda: self.inner.read_lines(n), n=n)
+
+    def discard_input(self) -> None:
+        self._logged("discard", self.inner.discard_input)
+
+    def reply_timeout(self, seconds: float) -> Any:
+        return self.inner.reply_timeout(seconds)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+class ReplayLines:
+    """A line transport answering from a :class:`Replay`."""
+
+    def __init__(self, replay: Replay, name: str, clock: Clock):
+        self.replay, self.name, self.clock = replay, name, clock
+
+    def _next(self, kind: str, what: str) -> dict[str, Any]:
+        record = self.replay.next(self.name, kind, what, self.clock)
+        if "e" in record:
+            _raise_recorded(record["e"])
+        return record
+
+    def write_line(self, line: str) -> None:
+        record = self.replay.next(self.name, "writeline", f"line {line!r}", self.clock)
+        if record.get("l") != line:
+            raise self.replay.diverged(self.name, record, f"line {line!r}")
+        if "e" in record:
+            _raise_recorded(record["e"])
+
+    def read_line(self) -> str:
+        return str(self._next("readline", "read of a line")["l"])
+
+    def read_lines(self, n: int) -> list[str]:
+        return [str(x) for x in self._next("readlines", f"read of {n} lines")["l"]]
+
+    def discard_input(self) -> None:
+        self._next("discard", "discard")
+
+    def reply_timeout(self, seconds: float) -> Any:
+        return contextlib.nullcontext()
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def line_transport(name: str, clock: Clock, make: Callable[[], T]) -> T:
+    """The driver's line transport: made by ``make``, recorded, or replayed instead."""
+    state = active()
+    if isinstance(state, Replay):
+        return ReplayLines(state, name, clock)  # type: ignore[return-value]
+    transport = make()
+    if isinstance(state, WireLog):
+        return RecordingLines(transport, state, name, clock)  # type: ignore[return-value]
+    return transport
+
+
+__all__ = ["MAX_BYTES", "RecordingChannel", "RecordingLines", "RecordingPort", "Replay",
+           "ReplayChannel", "ReplayDiverged", "ReplayLines", "ReplayPort", "WireLog", "active",
+           "grpc_channel", "line_transport", "recording", "replaying", "serial_port",
+           "suspended"]

@@ -150,3 +150,42 @@ def test_sim_replay_of_something_else_is_one_line_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "recorded by gelrig run --wire-log" in err and "\n" not in err
     assert main(["sim", "replay", str(tmp_path / "missing.jsonl")]) == 2
+
+
+SHEAR = """\
+[protocol]
+name = "shear touch"
+rig = "shear"
+
+[sample]
+name = "paper: PDMS spheres"
+r1 = "9.2 mm"
+r2 = "9.96 mm"
+
+[[step]]
+kind = "shear_contact_search"
+name = "contact search"
+safe_gap = "4 mm"
+coarse = "1 mm"
+fine = "0.1 mm"
+rpm = 0.5
+threshold = "0.2 mN*m"
+sweep = "70 mm"
+"""
+
+
+@pytest.mark.slow
+def test_a_shear_runs_mcr501_lines_replay_the_same(tmp_path, capsys, monkeypatch):
+    from gelrig.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "shear.toml").write_text(SHEAR)
+    assert main(["run", "shear.toml", "--out", "srun", "--wire-log", "--no-rehearse"]) == 0
+    log = tmp_path / "srun" / "wire.jsonl"
+    assert wire.Replay(log).recorded.keys() == {"mcr501"}
+    capsys.readouterr()
+    assert main(["sim", "replay", str(log), "--out", "again"]) == 0
+    assert "every one as recorded" in capsys.readouterr().out
+    first, again = _columns(tmp_path / "srun"), _columns(tmp_path / "again")
+    assert first.keys() == again.keys() and first
+    assert all(np.array_equal(v, again[k], equal_nan=True) for k, v in first.items())
