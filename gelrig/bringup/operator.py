@@ -79,11 +79,12 @@ class Operator(Protocol):
 class ConsoleOperator:
     """A person at the terminal: prompts on ``write``, answers from ``read`` (``input``)."""
 
-    def __init__(self, name: str = "operator", read: Callable[[str], str] = input,
-                 write: Callable[[str], None] = print):
+    def __init__(self, name: str = "operator", read: Callable[[str], str] | None = None,
+                 write: Callable[[str], None] | None = None):
         self.name = name
-        self._read = read
-        self._write = write
+        # looked up when called: the terminal's input and print of the moment
+        self._read = read or (lambda prompt: input(prompt))
+        self._write = write or (lambda text: print(text, flush=True))
 
     def say(self, text: str) -> None:
         self._write(text)

@@ -4,6 +4,8 @@ write them with their provenance into a confirmed rig file (gelrig.bringup)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 
 
@@ -20,7 +22,28 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, metavar="CONFIRMED.toml",
                    help="the confirmed rig file (default: RIG.confirmed.toml beside RIG.toml)")
     p.add_argument("--seed", type=int, default=0, help="the twin operator's reading errors")
+    p.add_argument("--wire-log", action="store_true",
+                   help="record every byte, RPC and line to and from each instrument, with "
+                        "host times, into CONFIRMED.wire.jsonl beside the confirmed file")
     p.set_defaults(handler=cmd_bringup)
+
+
+@contextlib.contextmanager
+def _wire_log(args: argparse.Namespace, out: Path) -> Iterator[None]:
+    """With ``--wire-log``, the instruments' exchanges go to ``out``'s ``.wire.jsonl``."""
+    if not args.wire_log:
+        yield
+        return
+    import os
+
+    from gelrig.instrument.core import wire
+
+    path = out.with_name(f"{out.stem}.wire.jsonl")
+    header = {"argv": list(getattr(args, "argv", [])), "cwd": os.getcwd(),
+              "command": "bringup"}
+    with wire.recording(wire.WireLog(path, header)):
+        yield
+    print(f"wire log: {path}")
 
 
 def cmd_bringup(args: argparse.Namespace) -> int:
@@ -37,7 +60,9 @@ def cmd_bringup(args: argparse.Namespace) -> int:
 
     if args.operator == "twin":
         runner.check_twin(load_rig(args.rig))
-    outcome = runner.run(Path(args.rig), make, Path(args.out) if args.out else None)
+    out = Path(args.out) if args.out else runner.default_out(Path(args.rig))
+    with _wire_log(args, out):
+        outcome = runner.run(Path(args.rig), make, out)
     print("\nFound:")
     for line in outcome.findings:
         print(f"  {line}")

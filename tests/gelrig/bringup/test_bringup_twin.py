@@ -138,3 +138,20 @@ def test_twin_operator_on_a_real_rig_is_one_line_exit_2(tmp_path, capsys):
     assert code == 2 and "\n" not in err and "Traceback" not in err
     assert err.startswith("gelrig: ") or "--operator" in err
     assert "--operator = twin" in err or "--operator" in err
+
+
+def test_the_console_operator_declining_everything_writes_nothing(tmp_path, monkeypatch,
+                                                                  capsys):
+    rig = _rig(tmp_path)
+    asked: list[str] = []
+    monkeypatch.setattr("builtins.input", lambda prompt: (asked.append(prompt), "n")[1])
+    out = tmp_path / "never.toml"
+    assert main(["bringup", str(rig), "--name", "ana", "--out", str(out), "--wire-log"]) == 0
+    printed = capsys.readouterr().out
+    assert "Nothing written." in printed and not out.exists()
+    assert asked[0] == "Go ahead with stage.home? [y/n] "
+    assert {"Go ahead with loadcell.noise? [y/n] ",
+            "Go ahead with loadcell.calibration? [y/n] "} <= set(asked)
+    # identify (no motion, no question) reached the controller, and the wire log has it
+    log = tmp_path / "never.wire.jsonl"
+    assert log.is_file() and '"i":"kdc101"' in log.read_text()
