@@ -155,3 +155,23 @@ def test_the_console_operator_declining_everything_writes_nothing(tmp_path, monk
     # identify (no motion, no question) reached the controller, and the wire log has it
     log = tmp_path / "never.wire.jsonl"
     assert log.is_file() and '"i":"kdc101"' in log.read_text()
+
+
+def test_a_sample_left_on_the_plate_trips_the_interlock_and_the_scale_is_not_written(tmp_path):
+    """The operator forgot the sample: the scale's steps press the sphere, the force
+    interlock trips, the stop is delivered and read back, and no scale is proposed."""
+    rig = tmp_path / "rig.toml"
+    rig.write_text(RIG.replace('max_force = "2 N"', 'max_force = "0.05 N"')
+                   .replace("seed = 3", 'seed = 3\nfirst_touch = "2.5 mm"'))
+    made: list[TwinOperator] = []
+
+    def operator(r, c, s):
+        made.append(runner.twin_operator(r, c, s, declines=("loadcell", "write")))
+        return made[0]
+
+    outcome = runner.run(rig, operator)
+    said = "\n".join(made[0].said or [])
+    assert "STOPPED: move to" in said and "tripped" in said
+    assert "stop" in said.split("STOPPED:")[1].lower()
+    assert {item.key for item in outcome.declined} == {"direction"}  # found before the trip
+    assert outcome.written is None
