@@ -75,6 +75,7 @@ def build_parser() -> Parser:
         analyze,
         bringup,
         campaign,
+        check,
         demo,
         fit,
         gui,
@@ -100,6 +101,7 @@ def build_parser() -> Parser:
     runs.register(sub)
     validate.register(sub)
     bringup.register(sub)
+    check.register(sub)
     _register_sim(sub)
     return parser
 
