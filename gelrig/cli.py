@@ -73,7 +73,9 @@ Handler = Callable[[argparse.Namespace], int]
 def build_parser() -> Parser:
     from gelrig.commands import (
         analyze,
+        bringup,
         campaign,
+        check,
         demo,
         fit,
         gui,
@@ -98,6 +100,8 @@ def build_parser() -> Parser:
     campaign.register(sub)
     runs.register(sub)
     validate.register(sub)
+    bringup.register(sub)
+    check.register(sub)
     _register_sim(sub)
     return parser
 
@@ -115,6 +119,9 @@ def _register_sim(sub: argparse._SubParsersAction) -> None:
     for name, served in SERVED.items():
         p = which.add_parser(name, help=served.summary, populate=served.add_arguments)
         p.set_defaults(handler=functools.partial(_serve, served.module))
+    from gelrig.commands import replay
+
+    replay.register(sim_sub)
 
 
 def _serve(module_name: str, args: argparse.Namespace) -> int:
@@ -138,6 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if handler is None:
             parser.print_help()
             return 2
+        args.argv = args_list  # what a wire log's header records (gelrig sim replay)
         return handler(args)
     except UsageError as exc:
         if debug:

@@ -50,9 +50,11 @@ def twin_spec(spec: RigSpec) -> RigSpec:
 
 def build_twin(spec: RigSpec) -> Rig:
     """The rig's twin on a fresh virtual clock: what ``gelrig plan`` rehearses on."""
+    from gelrig.instrument.core import wire
     from gelrig.instrument.core.clock import VirtualClock
 
-    return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
+    with wire.suspended():  # a rehearsal is not part of a recorded session (issue 30)
+        return build_rig(twin_spec(spec), VirtualClock(), in_process=True)
 
 
 def _record(identity: Identity, transport: str, address: str) -> dict[str, str]:
@@ -88,10 +90,12 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
     from gelrig.simulators.twins.shear import shear_simulator
 
     entry, truth = spec.rheometer, spec.simulator
+    twin: object | None = None
     closers: list[Callable[[], None]] = []
     try:
         if entry.simulated:
             sim = shear_simulator(clock, truth, entry.config)
+            twin = sim
             if truth.link == "direct":
                 driver = MCR501(DirectLink(sim), clock, entry.config)
                 where = "in-process link"
@@ -112,7 +116,9 @@ def _shear(spec: ShearRigSpec, clock: Clock) -> ShearRig:
     except BaseException:
         _close_all(closers)
         raise
-    return ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
+    rig = ShearRig(driver, clock, spec.limits, identities, entry.simulated, closers[1:])
+    rig.twin = twin
+    return rig
 
 
 def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = False
@@ -179,8 +185,10 @@ def _compression(spec: CompressionRigSpec, clock: Clock, in_process: bool = Fals
         raise
     # stage.close and force.close run in CompressionRig.close; the rest (servers) after them
     hooks = [c for c in closers if c not in (stage.close, force.close)]
-    return CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,
-                          list(reversed(hooks)))
+    rig = CompressionRig(stage, force, clock, spec.limits, identities, spec.simulated,
+                         list(reversed(hooks)))
+    rig.twin = twin
+    return rig
 
 
 __all__ = ["build_rig", "build_twin", "twin_spec"]

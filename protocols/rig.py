@@ -113,6 +113,9 @@ class CompressionRig:
     first_touch: float | None = field(default=None, init=False)
     #: safe stop first: armed by the runner while a step runs (protocols/fence.py)
     fence: Fence = field(default_factory=Fence, init=False)
+    #: the simulated instruments behind a simulated rig (the factory sets it): what bring-up's
+    #: twin operator reads its answers from (issue 30); None on a real rig
+    twin: object | None = field(default=None, init=False, repr=False)
 
     kind = "compression"
 
@@ -298,6 +301,9 @@ class ShearRig:
     close_hooks: list[Callable[[], None]] = field(default_factory=list)
     #: safe stop first: armed by the runner while a step runs (protocols/fence.py)
     fence: Fence = field(default_factory=Fence, init=False)
+    #: the simulated rheometer behind a simulated rig (the factory sets it); None on a real
+    #: rig (issue 30: bring-up's twin operator)
+    twin: object | None = field(default=None, init=False, repr=False)
 
     kind = "shear"
 

@@ -5,12 +5,14 @@ Everything is validated on load, before anything connects, by the one configurat
 max_position``), the value as written and what is allowed. A ``[simulator]`` table gives the
 hidden truth of a simulated rig (where the sphere is, its material;
 :mod:`gelrig.instrument.physics.truth`); it is used only when an instrument's transport is
-``simulator``. The built-in rigs in ``protocols/rigs/`` are fully simulated, so gelrig runs on
-a fresh machine with no hardware.
+``simulator``. A force noise measured at bring-up (``[force.chain] noise``) is the twin's
+noise unless ``[simulator] noise`` is given. The built-in rigs in ``protocols/rigs/`` are
+fully simulated, so gelrig runs on a fresh machine with no hardware.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -179,13 +181,17 @@ def parse_rig(root: dict[str, Any], source: str = "<rig>") -> RigSpec:
         chain = force.pop("chain", {})
         if not isinstance(chain, dict):
             raise ConfigError("[force.chain]", chain, "a table is required here", source)
+        loadcell = LoadCellChain.from_table(chain, source)
+        truth = CompressionTruth.from_table(sim_table, source)
+        if loadcell.noise is not None and "noise" not in sim_table:
+            # the twin learns from bring-up (issue 30): the noise measured at the rig is
+            # its twin's, unless the [simulator] table sets one
+            truth = dataclasses.replace(truth, noise=loadcell.noise)
         return CompressionRigSpec(
             name,
             StageEntry(*stage_link, StageConfig.from_table(stage, source)),
-            ForceEntry(*force_link, Usb6001Config.from_table(force, source),
-                       LoadCellChain.from_table(chain, source)),
-            CompressionLimits.from_table(limits_table, source),
-            CompressionTruth.from_table(sim_table, source), root, source)
+            ForceEntry(*force_link, Usb6001Config.from_table(force, source), loadcell),
+            CompressionLimits.from_table(limits_table, source), truth, root, source)
     rheo = _table(root, "rheometer", source)
     rheo_link = _connection(rheo, "rheometer", source)
     backend = Choice("backend", VISA_BACKENDS, "@py").parse(rheo.pop("backend", "@py"),

@@ -34,6 +34,7 @@ from gelrig.drivers.kdc101.apt import (
 from gelrig.drivers.kdc101.segments import BoundedMove, SegmentPlan
 from gelrig.instrument.contracts.stage import StageConfig, StageStatus
 from gelrig.instrument.contracts.stop_first import stop_on_fault
+from gelrig.instrument.core import wire
 from gelrig.instrument.core.clock import Clock, RealClock
 from gelrig.instrument.core.errors import (
     DeviceErrorReply,
@@ -204,13 +205,18 @@ class KDC101:
 
     def _connect(self) -> SerialBase:
         port = self._given
-        try:
+
+        def connect() -> SerialBase:
             if isinstance(port, str):
                 return serial.serial_for_url(port, baudrate=BAUD, bytesize=8, parity="N",
                                              stopbits=1, rtscts=False, timeout=0)
             if not port.is_open:
                 port.open()
             return port
+
+        try:
+            # recorded or replayed while a wire log is active (issue 30)
+            return wire.serial_port("kdc101", self.clock, connect)
         except (SerialException, OSError, ValueError) as exc:
             raise Disconnected(f"KDC101: cannot open {self.address!r}: {exc}") from exc
 

@@ -29,10 +29,11 @@ from gelrig.drivers.mcr501.codec import (
     decode_reply,
     decode_stream_header,
 )
-from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS
+from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS, split_key
 from gelrig.drivers.mcr501.transport import LineTransport, VisaTransport
 from gelrig.instrument.contracts.rheometer import RheometerConfig, RheometerStatus, StreamBlock
 from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
+from gelrig.instrument.core import wire
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.core.errors import (
     Disconnected,
@@ -125,13 +126,13 @@ class MCR501:
         if self._link is not None:
             return self
         given = self._given
+        # recorded or replayed while a wire log is active (issue 30)
         if isinstance(given, str):
-            self._link = VisaTransport(given, timeout=self._config.timeout,
-                                       backend=self._backend,
-                                       resource_manager=self._resource_manager,
-                                       baud_rate=self._baud_rate)
+            self._link = wire.line_transport("mcr501", self._clock, lambda: VisaTransport(
+                given, timeout=self._config.timeout, backend=self._backend,
+                resource_manager=self._resource_manager, baud_rate=self._baud_rate))
         else:
-            self._link = given
+            self._link = wire.line_transport("mcr501", self._clock, lambda: given)
         try:
             self.identity = self.identify()
         except BaseException:
@@ -155,9 +156,9 @@ class MCR501:
         before = self.identity
         self._release()
         self._resync = False
-        self._link = VisaTransport(given, timeout=self._config.timeout, backend=self._backend,
-                                   resource_manager=self._resource_manager,
-                                   baud_rate=self._baud_rate)
+        self._link = wire.line_transport("mcr501", self._clock, lambda: VisaTransport(
+            given, timeout=self._config.timeout, backend=self._backend,
+            resource_manager=self._resource_manager, baud_rate=self._baud_rate))
         try:
             identity = self.identify()
         except BaseException:
@@ -394,6 +395,26 @@ class MCR501:
     def hold(self) -> None:
         self._transact("hold")
         self._maybe_rotating = False
+
+    @guarded
+    def exchange(self, line: str) -> list[str]:
+        """Send ``line`` as written and return its reply lines, unchecked: the reply line,
+        and after a ``#DATA[count;remaining]`` header its ``count`` record lines. What
+        bring-up checks the command table with (issue 30); a ``:ROT`` line counts as a
+        rotation until a stop or hold is answered, so a fault still stops the arm first."""
+        if line.startswith(":ROT"):
+            self._maybe_rotating = True
+        self._send(line)
+        reply = self._transport.read_line()
+        out = [reply]
+        head = split_key(reply)
+        if head is not None and head[0] == "#DATA":
+            count = head[1].split(";")[0]
+            if count.isdigit() and int(count):
+                out += self._transport.read_lines(int(count))
+        if line.split("[")[0] in (":STOP", ":HOLD") and reply.endswith("[OK]"):
+            self._maybe_rotating = False
+        return out
 
     # -- readings --------------------------------------------------------------------------
 

@@ -38,6 +38,7 @@ from gelrig.instrument.contracts.loadcell import (
     LoadCellChain,
 )
 from gelrig.instrument.contracts.stop_first import guarded, stop_on_fault
+from gelrig.instrument.core import wire
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.core.errors import (
     ConfigError,
@@ -158,6 +159,8 @@ class Usb6001ForceSensor:
                                                                   options=CHANNEL_OPTIONS)
         elif self._grpc is not None:
             channel = self._grpc.grpc_channel
+        # recorded or replayed while a wire log is active (issue 30)
+        channel = wire.grpc_channel("usb6001", self.clock, channel)
         try:
             # One budget for the whole open: nidaqmx probes the server's version three times
             # and swallows the failures, so per-call deadlines alone would add up.

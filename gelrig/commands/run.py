@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 from gelrig.instrument.core.errors import ConfigError
 
 if TYPE_CHECKING:  # rig files, drivers, data store and runner are imported when a command runs
+    from collections.abc import Iterator
+
     from gelrig.instrument.core.store import RunDirectory
     from gelrig.protocols.events import RunState
     from gelrig.protocols.procedure import Procedure
@@ -30,6 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="time base (default: virtual on a simulated rig, real otherwise)")
     run.add_argument("--out", default=None, help="run directory (default runs/<time>-<rig>)")
     run_info_args(run)
+    run.add_argument("--wire-log", action="store_true",
+                     help="record every byte and RPC to and from each instrument, with host "
+                          "times, into RUN_DIR/wire.jsonl (bounded; gelrig sim replay serves "
+                          "it back to the drivers)")
     run.add_argument("--no-rehearse", action="store_true",
                      help="skip the rehearsal on the rig's twin before connecting (experts: a "
                           "script's later steps are then checked only as it sends them)")
@@ -249,12 +255,13 @@ def cmd_run(args: argparse.Namespace) -> int:
               "(--no-rehearse skips it)")
     # an instrument that cannot be reached, or a step beyond the built rig's caps, is
     # refused before the run folder is made (exit 2, one line)
-    with closing_rig(build_rig(rig, clock)) as built:
+    with wire_log(args, out) as moved, closing_rig(build_rig(rig, clock)) as built:
         refused = preflight(built, protocol)
         if refused:
             return refuse("run", refused[0])
         made = new_folders(out)
         run = create_run(protocol, rig, spec, out, info)
+        moved.append(run.path / "wire.jsonl")
         with RunHost(built, protocol, run) as host:
             print(f"\nrecording to {out.resolve()} ({spec} clock)")
             state = run_in_terminal(host)
@@ -264,6 +271,32 @@ def cmd_run(args: argparse.Namespace) -> int:
         discard_run(run, made)
         return refuse("run", problem)
     return _finish(run, state.value, host.reason)
+
+
+@contextlib.contextmanager
+def wire_log(args: argparse.Namespace, out: Path) -> Iterator[list[Path]]:
+    """With ``--wire-log``, record the instruments' exchanges while the block runs (beside
+    ``out`` until the run folder exists); the caller appends where the log goes once the run
+    folder is made, and it is moved there at the end (removed if no folder was made)."""
+    target: list[Path] = []
+    if not getattr(args, "wire_log", False):
+        yield target
+        return
+    import os
+
+    from gelrig.instrument.core import wire
+
+    temp = out.parent / f".{out.name}.wire.jsonl"
+    header = {"argv": list(getattr(args, "argv", [])), "cwd": os.getcwd(), "command": "run"}
+    try:
+        with wire.recording(wire.WireLog(temp, header)):
+            yield target
+    finally:
+        if target and temp.exists():
+            temp.replace(target[-1])
+            print(f"wire log: {target[-1]}")
+        else:
+            temp.unlink(missing_ok=True)
 
 
 def refuse(command: str, problem: str) -> int:

@@ -80,6 +80,8 @@ class LiveFitState:
     #: ... and the reported fit on a grid over the hold with its standard deviation (s, Pa,
     #: Pa; NaN where the covariance does not determine it)
     curve: tuple[FloatArray, FloatArray, FloatArray] = (np.empty(0), np.empty(0), np.empty(0))
+    #: the residuals' rms (Pa), the noise the fit's errors take as white
+    noise: float = math.nan
 
     @property
     def tau(self) -> float:
@@ -222,7 +224,27 @@ class LiveFit:
                             relative, forecast, fit.relax, dict(fit.stderr), fit.g_e,
                             bin_means(tb, gb, DRAW_POINTS),
                             (grid, model(shown.g_e, shown.relax, grid),
-                             band(shown, tb, n, noise, grid)))
+                             band(shown, tb, n, noise, grid)), noise)
+
+
+#: Residual noise over the rig's measured white noise above which the white-noise assumption
+#: (and the errors and forecasts that rest on it) is reported as not holding.
+WHITE_NOISE_RATIO = 1.5
+
+
+def white_noise_check(residual: float, white: float) -> str | None:
+    """Why the fit's white-noise assumption fails (one line), or None: the residuals' rms
+    ``residual`` against the instrument's white noise ``white`` measured at bring-up (both in
+    the fit's units). Larger residuals mean noise the fit does not model (drift, 1/f, a
+    sample that moves) or a model that misses the data: its intervals are then too narrow."""
+    if not (math.isfinite(residual) and math.isfinite(white) and white > 0):
+        return None
+    ratio = residual / white
+    if ratio <= WHITE_NOISE_RATIO:
+        return None
+    return (f"live fit: residuals {ratio:.2g}x the rig's white noise measured at bring-up: "
+            "the fit's white-noise assumption does not hold here (drift, 1/f noise or a model "
+            "that misses the data); its intervals and forecast are too narrow")
 
 
 def _fit_exact(tb: FloatArray, gb: FloatArray, n: FloatArray, within: float, terms: int,

@@ -53,6 +53,9 @@ class LoadCellChain(Config):
     compliance: float = param(Field("compliance", "m/N", 0.0, 0.0, 1e-2, display="um/N",
                                     help="load cell deflection per newton: the hold analysis "
                                          "subtracts it from the plate travel"))
+    noise: float | None = param(Field("noise", "N", None, 0.0, 0.1, optional=True,
+                                      help="the force's noise as measured at bring-up (rms, "
+                                           "unloaded; issue 30)"))
 
     @property
     def sensitivity(self) -> float:

@@ -155,8 +155,46 @@ class CompressionTruth(_Truth):
     stage_reply_latency: float | None = param(Field(
         "stage_reply_latency", "s", None, 0.0, 1.0, optional=True,
         help="KDC101 reply and status latency to the host (UNVERIFIED; default: timing's)"))
+    # The instruments' hidden facts (issue 30): what the simulated hardware really is,
+    # whatever the rig file believes ([stage] counts_per_mm, direction, [force.chain]
+    # rated_output are what the drivers use). None: the simulated hardware follows the rig
+    # file's belief (its direction and rated output) or the Z825B's nominal scale.
+    counts_per_mm: float | None = param(Field(
+        "counts_per_mm", "", None, 1e3, 1e6, lo_open=True, optional=True,
+        help="the stage's real encoder scale, counts per mm (default: the Z825B's nominal "
+             "34554.96)"))
+    rated_output: float | None = param(Field(
+        "rated_output", "V/V", None, 0.0, 0.01, lo_open=True, optional=True,
+        help="the load cell's real rated output (default: the rig file's [force.chain])"))
+    direction: int | None = param(Field(
+        "direction", "", None, -1, 1, integer=True, optional=True,
+        help="where the KDC101's APT 'forward' code really moves: +1 larger counts, -1 "
+             "smaller (default: the rig file's [stage] direction)"))
     #: The sphere's material (``g_e``, ``nu``, ``relax``); default the paper's plate fit.
     material: Material = paper.PLATES
+
+    def validate(self, where: Where) -> None:
+        _check_direction(self.direction, where)
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any], source: str | None = None,
+                   section: str | None = None, ignore: Sequence[str] = ()) -> Self:
+        """As :meth:`_Truth.from_table`; ``direction`` checked as written, with the file."""
+        if isinstance(table, Mapping) and "direction" in table:
+            raw = table["direction"]
+            where = Where(cls.section if section is None else section, source)
+            if isinstance(raw, bool) or not isinstance(raw, int | float):
+                raise where.error("direction", raw, _DIRECTIONS)
+            _check_direction(raw, where)
+        return super().from_table(table, source, section, ignore)
+
+
+_DIRECTIONS = "allowed: +1 (forward is larger counts) or -1 (forward is smaller counts)"
+
+
+def _check_direction(value: float | None, where: Where) -> None:
+    if value is not None and value not in (-1, 1):
+        raise where.error("direction", value, _DIRECTIONS)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,8 @@ import numpy as np
 
 from gelrig.instrument.analysis.hold import find_hold
 from gelrig.instrument.analysis.hold_analysis import measured_overlap
-from gelrig.instrument.analysis.live_fit import LiveFit, StopRule
+from gelrig.instrument.analysis.live_fit import LiveFit, LiveFitState, StopRule, white_noise_check
+from gelrig.instrument.analysis.quantiser import find_lattice
 from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history
 from gelrig.instrument.core.errors import GelrigError
 from gelrig.instrument.core.fields import Field, Where, param
@@ -22,7 +23,7 @@ from gelrig.instrument.physics import paper
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.protocols.caps import stage_position_error, stage_speed_error
 from gelrig.protocols.context import StepContext
-from gelrig.protocols.events import FitUpdate
+from gelrig.protocols.events import FitUpdate, Note
 from gelrig.protocols.rig import CompressionLimits, CompressionRig
 from gelrig.protocols.steps.acquire import COLUMNS, ForceRecorder
 from gelrig.protocols.steps.base import (
@@ -397,6 +398,14 @@ class _LiveHold:
         self.fit = LiveFit(int(p.terms), p.hold, p.rate)
         self.t0: float | None = None
         self.met = False
+        # the force noise measured at bring-up ([force.chain] noise), if any: what the live
+        # fit's white-noise assumption is checked against (issue 30), once per hold
+        chain = getattr(ctx.rig.force, "chain", None)
+        white = getattr(chain, "noise", None)
+        self.white = float(white) if isinstance(white, int | float) else None
+        self.checked = False
+        self._overlap = math.nan
+        self._forces: FloatArray = np.empty(0)  # the latest, for the quantiser's step
 
     def block(self, data: dict[str, FloatArray]) -> bool:
         """Take one block of the hold; True once the adaptive hold may end."""
@@ -412,6 +421,9 @@ class _LiveHold:
         if ok.any():
             g = modulus_history(data["force_N"][ok], delta[ok], self.p.diameter / 2)
             self.fit.add(t[ok] - self.t0, g)
+            self._overlap = float(np.mean(delta[ok]))
+            if self.white is not None and not self.checked:
+                self._forces = np.concatenate((self._forces, data["force_N"]))[-4000:]
         elapsed = float(t[-1]) - self.t0 + 1.0 / self.p.rate
         if not self.fit.due(elapsed):
             return False
@@ -422,11 +434,29 @@ class _LiveHold:
             return False
         if state is None:
             return False
+        self._check_white(state)
         self.met = self.rule is not None and self.rule.done(self.fit.history)
         met_now = self.rule.met(state) if self.rule is not None else False
         self.ctx.bus.publish(FitUpdate(self.ctx.clock.now(), self.ctx.index, state, met_now,
                                        self.met))
         return self.met
+
+    def _check_white(self, state: LiveFitState) -> None:
+        """Once the fit has half the planned hold: its residuals against the rig's measured
+        white noise with the quantiser's q^2/12 added back (bring-up removed it; the fit sees
+        the codes), converted to G at the current overlap; a Note if they exceed it."""
+        if self.white is None or self.checked or state.elapsed < 0.5 * self.p.hold \
+                or not self._overlap > 0:
+            return
+        self.checked = True
+        lattice = find_lattice(self._forces)
+        step = lattice.step if lattice is not None else 0.0
+        white = math.sqrt(self.white ** 2 + step ** 2 / 12.0)
+        per_newton = float(modulus_history(1.0, self._overlap, self.p.diameter / 2))
+        problem = white_noise_check(state.noise, white * per_newton)
+        if problem:
+            log.warning("%s", problem)
+            self.ctx.bus.publish(Note(self.ctx.clock.now(), problem))
 
     def end(self, held: float) -> str:
         """Why the hold ended."""

@@ -23,7 +23,11 @@ from dataclasses import dataclass
 
 from gelrig.instrument.contracts.daq import Usb6001Config
 from gelrig.instrument.contracts.loadcell import LoadCellChain
-from gelrig.instrument.contracts.stage import StageConfig
+from gelrig.instrument.contracts.stage import (
+    FORWARD_IS_NEGATIVE,
+    FORWARD_IS_POSITIVE,
+    StageConfig,
+)
 from gelrig.instrument.core.clock import Clock
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.instrument.physics.plate_contact import PlateSphereContact
@@ -55,9 +59,28 @@ def stage_simulator(clock: Clock, stage: StageConfig, truth: CompressionTruth | 
     convention (ADR 0100), with the truth's status-update period and reply latency."""
     if truth is None:
         return KDC101Simulator(clock, SimConfig(direction=stage.direction))
-    return KDC101Simulator(clock, SimConfig(direction=stage.direction, timing=truth.timing,
-                                            update_period_s=truth.stage_update_period,
-                                            reply_latency_s=truth.stage_reply_latency))
+    config = SimConfig(direction=true_direction(stage, truth), timing=truth.timing,
+                       update_period_s=truth.stage_update_period,
+                       reply_latency_s=truth.stage_reply_latency)
+    if truth.counts_per_mm is not None:
+        config = dataclasses.replace(config, counts_per_mm=truth.counts_per_mm)
+    return KDC101Simulator(clock, config)
+
+
+def true_direction(stage: StageConfig, truth: CompressionTruth) -> str:
+    """The simulated controller's real direction convention: the truth's ``direction`` (+1:
+    APT forward is larger counts), else the rig file's ``[stage] direction``."""
+    if truth.direction is None:
+        return stage.direction
+    return FORWARD_IS_POSITIVE if truth.direction > 0 else FORWARD_IS_NEGATIVE
+
+
+def true_chain(chain: LoadCellChain, truth: CompressionTruth) -> LoadCellChain:
+    """The simulated load-cell chain: the rig file's, with the truth's real rated output
+    where it gives one, and the simulated conditioner's offset
+    (:data:`~gelrig.simulators.usb6001.config.SIM_OFFSET`, so that a missing tare shows)."""
+    rated = chain.rated_output if truth.rated_output is None else truth.rated_output
+    return dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET, rated_output=rated)
 
 
 def force_simulator(clock: Clock, plate: StagePlate, truth: CompressionTruth,
@@ -66,18 +89,18 @@ def force_simulator(clock: Clock, plate: StagePlate, truth: CompressionTruth,
     """The simulated USB-6001 whose input sees the load cell under the sphere of ``truth``,
     pressed by ``plate``.
 
-    ``chain`` is the rig file's ``[force.chain]``: the simulated conditioner adds
-    :data:`~gelrig.simulators.usb6001.config.SIM_OFFSET` to its offset (so that a missing tare
-    shows), and the truth's force noise (N rms) reaches the input through its sensitivity.
+    ``chain`` is the rig file's ``[force.chain]``; the simulated one is :func:`true_chain`
+    (the truth's rated output, an offset), and the truth's force noise (N rms) reaches the
+    input through the true sensitivity.
     ``daq`` is the ``[force]`` table: the device answers to its name, the load cell is wired to
     its channel.
     """
     daq = daq or Usb6001Config()
+    real = true_chain(chain, truth)
     return compression_daq(
         clock, plate, first_touch=truth.first_touch, vectorized=True,
         sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
-        chain=dataclasses.replace(chain, offset=chain.offset + SIM_OFFSET),
-        noise_rms=truth.noise * chain.sensitivity, material=truth.material,
+        chain=real, noise_rms=truth.noise * real.sensitivity, material=truth.material,
         unloading=truth.unloading, channel=daq.channel,
         spec=DeviceSpec(name=daq.device, timing=daq_timing(truth)))
 
@@ -130,4 +153,5 @@ class CompressionTwin:
         return self.signal.contact
 
 
-__all__ = ["CompressionTwin", "StagePlate", "daq_timing", "force_simulator", "stage_simulator"]
+__all__ = ["CompressionTwin", "StagePlate", "daq_timing", "force_simulator", "stage_simulator",
+           "true_chain", "true_direction"]

@@ -86,10 +86,14 @@ class LoadCellSignal:
         self.noise_rms = float(noise_rms)
         self._rng = np.random.default_rng(seed)
         self._state: float | None = None
+        #: A dead weight on the cell (N, compressive positive): what a calibration mass adds
+        #: to the contact's force from the next block read on (bring-up, issue 30).
+        self.dead_load = 0.0
 
     def force(self, t_first: float, dt: float, n: int) -> FloatArray:
-        """The true force (N) on the cell at the sample times (advances the contact)."""
-        return self.contact.force_on_grid(t_first, dt, n)
+        """The true force (N) on the cell at the sample times (advances the contact), with
+        any dead weight on it."""
+        return self.contact.force_on_grid(t_first, dt, n) + self.dead_load
 
     def volts(self, t_first: float, dt: float, n: int) -> FloatArray:
         v = self.chain.volts(self.force(t_first, dt, n))

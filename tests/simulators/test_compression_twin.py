@@ -118,3 +118,38 @@ def test_the_same_seed_gives_the_same_samples() -> None:
 
     assert np.array_equal(record(3), record(3))
     assert not np.array_equal(record(3), record(4))
+
+
+# The hidden facts (issue 30): the simulated hardware is what the truth says, the driver
+# uses what the rig file believes.
+
+def test_the_stage_moves_by_its_true_scale_not_the_rig_files():
+    clock = VirtualClock()
+    truth = _truth(counts_per_mm=34304.0)
+    twin = CompressionTwin.build(clock, truth, StageConfig(), LoadCellChain())
+    believed = StageConfig()  # 34554.96 counts/mm
+    with _stage(clock, twin.stage, believed.direction) as stage:
+        stage.home()
+        start = float(twin.plate(np.array([clock.now()]))[0])
+        stage.move_by(1e-3)
+        moved = float(twin.plate(np.array([clock.now()]))[0]) - start
+    assert moved == pytest.approx(round(34554.96) / 34304.0 * 1e-3, rel=1e-4)
+
+
+@pytest.mark.parametrize(("sign", "word"), [(1, "forward_is_positive"),
+                                            (-1, "forward_is_negative")])
+def test_the_controllers_true_direction_follows_the_truth(sign, word):
+    twin = CompressionTwin.build(VirtualClock(), _truth(direction=sign),
+                                 StageConfig(direction="forward_is_negative"), LoadCellChain())
+    assert twin.stage.config.direction == word
+
+
+def test_the_load_cell_outputs_its_true_rated_output_and_a_dead_load():
+    chain = LoadCellChain()  # believes 2 mV/V
+    twin = CompressionTwin.build(VirtualClock(), _truth(rated_output=2.06e-3), StageConfig(),
+                                 chain)
+    assert twin.signal.chain.rated_output == pytest.approx(2.06e-3)
+    twin.signal.dead_load = 1.0
+    volts = twin.signal.volts(0.0, 1e-3, 2000)
+    true_sens = 2.06e-3 * chain.excitation * chain.gain / chain.capacity
+    assert float(volts[-1]) == pytest.approx(SIM_OFFSET + true_sens, rel=1e-6)

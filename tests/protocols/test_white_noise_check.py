@@ -1,0 +1,54 @@
+"""The live fit checks its white-noise assumption against the noise measured at bring-up
+(issue 30): a rig noisier than at its bring-up says so in the run log; one as measured does
+not."""
+
+from __future__ import annotations
+
+import pytest
+
+from gelrig.instrument.analysis.live_fit import WHITE_NOISE_RATIO, white_noise_check
+from gelrig.instrument.core.clock import VirtualClock
+from gelrig.instrument.core.store import RunDirectory
+from gelrig.protocols.events import RunState
+from gelrig.protocols.rigfile import default_rig, load_rig
+from gelrig.protocols.spec import parse_protocol
+from gelrig.terminal import record_run
+
+STEPS = [{"kind": "compression_contact_search", "name": "contact search", "probe": "0.5 mm",
+          "speed": "0.3 mm/s", "threshold": "5 mN", "retract": "0.5 mm", "confirm": 2,
+          "rate": "100 Hz"},
+         {"kind": "ramp_hold", "diameter": "18.63 mm", "name": "ramp and hold", "hold": "60 s",
+          "rate": "100 Hz", "terms": 1}]
+
+
+def _log_of_run(tmp_path, measured: str, real: str) -> str:
+    text = default_rig("compression").read_text()
+    text = text.replace('noise = "0.2 mN"', f'noise = "{real}"')
+    text = text.replace('gain = 1000', f'gain = 1000\nnoise = "{measured}"')
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text)
+    spec = load_rig(rig)
+    assert spec.force.chain.noise == pytest.approx(float(measured.split()[0]) * 1e-3)
+    protocol = parse_protocol({"protocol": {"name": "hold", "rig": "compression"},
+                               "step": STEPS})
+    run = RunDirectory.create(tmp_path / "run", {"protocol": protocol.table,
+                                                 "rig": spec.table})
+    state, _ = record_run(protocol, spec, VirtualClock(), run, show=False)
+    assert state is RunState.COMPLETED
+    return (run.path / "gelrig.log").read_text()
+
+
+def test_a_rig_noisier_than_at_bring_up_is_noted(tmp_path):
+    log = _log_of_run(tmp_path, measured="0.1 mN", real="0.35 mN")
+    assert "the rig's white noise measured at bring-up" in log
+
+
+def test_a_rig_as_measured_passes_the_check(tmp_path):
+    log = _log_of_run(tmp_path, measured="0.35 mN", real="0.35 mN")
+    assert "white noise measured at bring-up" not in log
+
+
+def test_the_check_itself():
+    assert white_noise_check(1.0, 1.0) is None
+    assert white_noise_check(WHITE_NOISE_RATIO * 1.01, 1.0) is not None
+    assert white_noise_check(5.0, float("nan")) is None
