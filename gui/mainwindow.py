@@ -59,6 +59,7 @@ from gelrig.gui.memory import release
 from gelrig.gui.messages import explain_fault, in_words
 from gelrig.gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gelrig.gui.protocol_panel import ProtocolPanel, Rehearse
+from gelrig.gui.run_info_form import load_info, save_info
 from gelrig.gui.runview import RunWindow, step_lines
 from gelrig.gui.runview import fit_to_screen as fit
 from gelrig.gui.safety import Safety
@@ -379,6 +380,7 @@ class MainWindow(QMainWindow):
         self._scheme_link: QMetaObject.Connection | None = (
             QGuiApplication.styleHints().colorSchemeChanged.connect(scheme_changed))
         self.protocol.sample_form.set_texts(load_texts(store))
+        self.protocol.info_form.set_texts(load_info(store))
         recent = store.value("recent/protocols") or []
         self.recent = [str(p) for p in (recent if isinstance(recent, list) else [recent])]
         self._fill_recent()
@@ -391,12 +393,15 @@ class MainWindow(QMainWindow):
         store.setValue("recent/protocols", self.recent)
         store.setValue("view/appearance", self.appearance)
         save_texts(store, self.protocol.sample_form.all_texts())
+        save_info(store, self.protocol.info_form.texts())
         store.sync()
 
     def remember_sample(self) -> None:
-        """Keep the Sample fields (per rig kind) for the next window, as a run starts."""
+        """Keep the Sample fields (per rig kind) and the run record (operator, note, tags)
+        for the next run and window, as a run starts."""
         store = settings()
         save_texts(store, self.protocol.sample_form.all_texts())
+        save_info(store, self.protocol.info_form.texts())
         store.sync()
 
     def remember_protocol(self, path: Path) -> None:
@@ -681,7 +686,7 @@ class MainWindow(QMainWindow):
             return
         self.remember_sample()
         try:
-            path = self.desk.start_run(spec)
+            path = self.desk.start_run(spec, self.protocol.info_form.info)
         except Refused as exc:  # nothing moved, nothing made (ADR 0330)
             self.refuse_run(str(exc), "made")
             return

@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 
 from gelrig.gui import dialogs
 from gelrig.gui.protocol_form import ProtocolForm
+from gelrig.gui.run_info_form import RunInfoForm
 from gelrig.gui.sample_form import SampleForm
 from gelrig.gui.script_form import ScriptForm
 from gelrig.gui.tomlout import dumps
@@ -147,6 +148,10 @@ class ProtocolPanel(QGroupBox):
         self.sample_form = SampleForm()
         self.sample_form.changed.connect(self._sample_changed)
         layout.addWidget(self.sample_form)
+        #: who runs it and why (operator, note, tags): recorded in run.json
+        self.info_form = RunInfoForm()
+        self.info_form.changed.connect(self._update)
+        layout.addWidget(self.info_form)
         buttons = QHBoxLayout()
         self.run_button = QPushButton("Run")
         self.run_button.setToolTip("run the protocol on the connected rig, recording to a new "
@@ -435,6 +440,7 @@ class ProtocolPanel(QGroupBox):
         self.open_button.setEnabled(not self.active)
         self.forms.setEnabled(not self.active)
         self.sample_form.setEnabled(not self.active)
+        self.info_form.setEnabled(not self.active)
         if not self.active and self.refusal and self.state == RunState.IDLE:
             self.status.setText(f"a run is refused: {self.refusal}")
         elif not self.active and self.why_not and self.state == RunState.IDLE:
@@ -445,6 +451,8 @@ class ProtocolPanel(QGroupBox):
     def _why_not(self, spec: Procedure | None) -> str:
         if self.active:
             return "a run is going"
+        if self.info_form.errors:
+            return f"fix the run record: {self.info_form.errors[0]}"
         if spec is None and self.refusal:  # Run says it is refused (the CLI's line)
             return "" if self.connected else "connect the rig"
         if spec is None:
