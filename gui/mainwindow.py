@@ -59,6 +59,7 @@ from gelrig.gui.memory import release
 from gelrig.gui.messages import explain_fault, in_words
 from gelrig.gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gelrig.gui.protocol_panel import ProtocolPanel, Rehearse
+from gelrig.gui.results_browser import ResultsBrowser
 from gelrig.gui.run_info_form import load_info, save_info
 from gelrig.gui.runview import RunWindow, step_lines
 from gelrig.gui.runview import fit_to_screen as fit
@@ -141,6 +142,8 @@ class MainWindow(QMainWindow):
         self.plot_stack.addWidget(self.shear_plots)
         self.idle_plots = IdlePlots()
         self.fit_panel = FitPanel()
+        self.results = ResultsBrowser(services.runs_dir or Path("runs"), self.open_run,
+                                      lambda line: self.log.add(line, "warning"))
         self.header = Header(self.banner)
         self.stop_button = self.header.stop_button
         self.report_button = self.header.report_button
@@ -211,13 +214,14 @@ class MainWindow(QMainWindow):
         stop.setToolTip("Esc stops all motion from any window, a dialog included")
         view = self.menuBar().addMenu("&View")
         self.tab_actions: list[QAction] = []
-        for i, (tabs, name) in enumerate(
-                (("left", "Protocol"), ("left", "Manual control"), ("left", "Instruments"),
-                 ("right", "Run plots"), ("right", "Manual (live) plot"),
-                 ("right", "Live fit"))):
+        for i, (tabs, index, name) in enumerate(
+                (("left", 0, "Protocol"), ("left", 1, "Manual control"),
+                 ("left", 2, "Instruments"), ("right", 0, "Run plots"),
+                 ("right", 1, "Manual (live) plot"), ("right", 2, "Live fit"),
+                 ("right", 3, "Results (runs found and compared)"))):
             action = view.addAction(name)
             action.setShortcut(QKeySequence(f"Ctrl+{i + 1}"))
-            action.triggered.connect(partial(self.show_tab, tabs, i % 3))
+            action.triggered.connect(partial(self.show_tab, tabs, index))
             self.tab_actions.append(action)
         look = view.addMenu("&Appearance")
         self.appearance_actions: dict[str, QAction] = {}
@@ -244,8 +248,13 @@ class MainWindow(QMainWindow):
             self.set_appearance("system")
 
     def show_tab(self, side: str, index: int) -> None:
-        """View menu: bring a tab forward (Ctrl+1..6)."""
+        """View menu: bring a tab forward (Ctrl+1..7)."""
         (self.left_tabs if side == "left" else self.plot_tabs).setCurrentIndex(index)
+
+    def _on_plot_tab(self, index: int) -> None:
+        """The Results tab lists the runs as they are now each time it is brought forward."""
+        if self.plot_tabs.widget(index) is self.results:
+            self.results.refresh()
 
     def home_stage(self) -> None:
         """Rig menu (Ctrl+H): the manual panel's Home, when there is one and it is enabled."""
@@ -284,6 +293,8 @@ class MainWindow(QMainWindow):
         self.plot_tabs.addTab(self.plot_stack, "Run")
         self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
         self.plot_tabs.addTab(self.fit_panel, "Live fit")
+        self.plot_tabs.addTab(self.results, "Results")
+        self.plot_tabs.currentChanged.connect(self._on_plot_tab)
         right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(self.plot_tabs)
         right.addWidget(self.log)

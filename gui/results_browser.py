@@ -1,0 +1,213 @@
+"""The Results tab (issue 28, item 5): the runs of the runs folder, found as ``gelrig runs``
+finds them, opened in the run view or overlaid.
+
+The list comes from the catalog (``ROOT/.gelrig-runs.sqlite``) through the same query code as
+``gelrig runs`` and ``gelrig.runs`` (:func:`gelrig.catalog.find_runs`: the index brought up
+to date, rebuilt when missing or damaged with one warning line, read from the folders when
+locked), with the same filters: sample, operator, protocol, status (``*`` wildcards), tag,
+since, until. A bad filter is its one line under the filters; the list is left as it was.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QGridLayout,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+
+from gelrig.catalog import find_runs, load_run
+from gelrig.gui.compare_view import CompareView
+from gelrig.instrument.core.errors import ConfigError, GelrigError
+
+#: Filters: key (a ``find_runs`` keyword), placeholder.
+FILTERS = (("sample", "gel-A*"), ("operator", "ada"), ("protocol", "*hold*"),
+           ("status", "completed, interrupted"), ("tag", "week48"),
+           ("since", "2026-11-25 or 7d"), ("until", "2026-11-30"))
+#: Columns: title, the catalog entry's key.
+COLUMNS = (("run", "name"), ("started", "started"), ("sample", "sample"),
+           ("operator", "operator"), ("protocol", "protocol"), ("status", "status"),
+           ("tags", "tags"), ("note", "note"))
+_ERROR = "color:#c62828;"
+
+
+def filter_values(texts: dict[str, str]) -> dict[str, Any]:
+    """The filters typed: sample, operator, protocol, status and tag take comma-separated
+    values (any of them; all of the tags), since and until one time each."""
+    out: dict[str, Any] = {}
+    for key, text in texts.items():
+        text = text.strip()
+        if not text:
+            continue
+        if key in ("since", "until"):
+            out[key] = text
+        else:
+            out[key] = [part.strip() for part in text.split(",") if part.strip()]
+    return out
+
+
+def cell_text(entry: dict[str, Any], key: str) -> str:
+    value = entry.get(key)
+    text = ", ".join(value) if isinstance(value, list) else str(value or "")
+    if key == "status" and entry.get("status") != entry.get("recorded_status"):
+        text += f" (run.json: {entry.get('recorded_status')})"  # as gelrig runs shows it
+    return text
+
+
+class ResultsBrowser(QWidget):
+    """Filters, the runs found, Open and Compare, and the comparison below.
+
+    ``open_run(path)`` opens a run in the run view; ``warn(line)`` is told each warning
+    line of the catalog (a damaged index rebuilt, a locked one not used)."""
+
+    def __init__(self, root: Path, open_run: Callable[[Path], object],
+                 warn: Callable[[str], object] | None = None, parent: QWidget | None = None):
+        super().__init__(parent)
+        self.root = root
+        self.open_run = open_run
+        self.warn = warn
+        self.entries: list[dict[str, Any]] = []
+        self.warnings: list[str] = []
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(4, 4, 4, 4)
+        grid = QGridLayout()
+        grid.setHorizontalSpacing(4)
+        grid.setVerticalSpacing(2)
+        self.filters: dict[str, QLineEdit] = {}
+        for i, (key, placeholder) in enumerate(FILTERS):
+            edit = QLineEdit()
+            edit.setObjectName(f"filter_{key}")
+            edit.setPlaceholderText(placeholder)
+            edit.setToolTip(f"only runs with this {key} (as gelrig runs --{key})")
+            edit.returnPressed.connect(self.refresh)
+            grid.addWidget(QLabel(key), i // 4, 2 * (i % 4))
+            grid.addWidget(edit, i // 4, 2 * (i % 4) + 1)
+            self.filters[key] = edit
+        layout.addLayout(grid)
+        buttons = QHBoxLayout()
+        self.find_button = QPushButton("Find")
+        self.find_button.setToolTip("list the runs of the runs folder that match the filters")
+        self.open_button = QPushButton("Open")
+        self.open_button.setToolTip("open the selected run in the run view")
+        self.compare_button = QPushButton("Compare")
+        self.compare_button.setToolTip("overlay the selected runs' curves and put their "
+                                       "fitted values side by side")
+        self.find_button.clicked.connect(self.refresh)
+        self.open_button.clicked.connect(self.open_selected)
+        self.compare_button.clicked.connect(self.compare_selected)
+        for button in (self.find_button, self.open_button, self.compare_button):
+            buttons.addWidget(button)
+        self.status = QLabel()
+        self.status.setWordWrap(True)
+        buttons.addWidget(self.status, 1)
+        layout.addLayout(buttons)
+        self.table = QTableWidget(0, len(COLUMNS))
+        self.table.setHorizontalHeaderLabels([title for title, _ in COLUMNS])
+        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.table.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+        self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.table.horizontalHeader().setSectionResizeMode(
+            QHeaderView.ResizeMode.ResizeToContents)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.verticalHeader().setVisible(False)
+        self.table.itemSelectionChanged.connect(self._update_buttons)
+        self.table.doubleClicked.connect(lambda _index: self.open_selected())
+        self.compare = CompareView()
+        split = QSplitter(Qt.Orientation.Vertical)
+        split.addWidget(self.table)
+        split.addWidget(self.compare)
+        split.setStretchFactor(0, 1)
+        split.setStretchFactor(1, 2)
+        layout.addWidget(split, 1)
+        self._update_buttons()
+
+    # ---- the list -----------------------------------------------------------------------
+    def refresh(self) -> None:
+        """List the runs that match the filters (the index brought up to date first)."""
+        self.warnings = []
+        if not self.root.is_dir():
+            self.entries = []
+            self._fill()
+            self._say(f"no runs yet: {self.root} does not exist")
+            return
+        texts = {key: edit.text() for key, edit in self.filters.items()}
+        try:
+            entries = find_runs(self.root, warn=self._warned, **filter_values(texts))
+        except ConfigError as exc:  # a bad filter: its one line, the list kept
+            self._say(str(exc), error=True)
+            return
+        self.entries = entries
+        self._fill()
+        line = f"{len(entries)} run(s) in {self.root}"
+        self._say("; ".join([*self.warnings, line]), error=bool(self.warnings))
+
+    def _warned(self, line: str) -> None:
+        self.warnings.append(line)
+        if self.warn is not None:
+            self.warn(line)
+
+    def _say(self, text: str, error: bool = False) -> None:
+        self.status.setText(text)
+        self.status.setStyleSheet(_ERROR if error else "")
+
+    def _fill(self) -> None:
+        self.table.setRowCount(len(self.entries))
+        for row, entry in enumerate(self.entries):
+            for col, (_title, key) in enumerate(COLUMNS):
+                item = QTableWidgetItem(cell_text(entry, key)[:80])
+                item.setToolTip(entry["path"] if key == "name" else cell_text(entry, key))
+                self.table.setItem(row, col, item)
+        self._update_buttons()
+
+    def selected(self) -> list[dict[str, Any]]:
+        """The selected runs' catalog entries, in the list's order."""
+        rows = sorted({index.row() for index in self.table.selectionModel().selectedRows()})
+        return [self.entries[r] for r in rows if r < len(self.entries)]
+
+    def select(self, names: list[str]) -> None:
+        """Select the runs with these folder names (tests, scripts)."""
+        self.table.clearSelection()
+        mode = self.table.selectionMode()
+        self.table.setSelectionMode(QAbstractItemView.SelectionMode.MultiSelection)
+        for row, entry in enumerate(self.entries):
+            if entry["name"] in names:
+                self.table.selectRow(row)
+        self.table.setSelectionMode(mode)
+
+    def _update_buttons(self) -> None:
+        count = len(self.selected())
+        self.open_button.setEnabled(count == 1)
+        self.compare_button.setEnabled(count >= 2)
+
+    # ---- open, compare ------------------------------------------------------------------
+    def open_selected(self) -> None:
+        chosen = self.selected()
+        if len(chosen) == 1:
+            self.open_run(Path(chosen[0]["path"]))
+
+    def compare_selected(self) -> list[str]:
+        """Overlay the selected runs (two or more); returns the notes said."""
+        chosen = self.selected()
+        if len(chosen) < 2:
+            self._say("select two runs or more to compare", error=True)
+            return []
+        try:
+            runs = [load_run(entry["path"]) for entry in chosen]
+        except (GelrigError, OSError, KeyError, ValueError) as exc:
+            self._say(f"cannot compare: {exc}", error=True)
+            return []
+        return self.compare.show_runs(runs, chosen)
