@@ -59,6 +59,9 @@ from gelrig.gui.memory import release
 from gelrig.gui.messages import explain_fault, in_words
 from gelrig.gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gelrig.gui.protocol_panel import ProtocolPanel, Rehearse
+from gelrig.gui.queue import QueuePanel
+from gelrig.gui.queue_items import QueueItem
+from gelrig.gui.queue_runner import QueueRunner
 from gelrig.gui.results_browser import ResultsBrowser
 from gelrig.gui.run_info_form import load_info, save_info
 from gelrig.gui.runview import RunWindow, step_lines
@@ -78,8 +81,10 @@ from gelrig.protocols.events import (
     StepStarted,
 )
 from gelrig.protocols.manual_motion import Guarded
+from gelrig.protocols.procedure import Procedure
 from gelrig.protocols.rig import Rig
 from gelrig.protocols.rigfile import RigSpec
+from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.safestop import SafeState
 
 #: The pace control of simulated time.
@@ -104,6 +109,11 @@ def settings() -> QSettings:
     if path:
         return QSettings(path, QSettings.Format.IniFormat)
     return QSettings(QSettings.Format.IniFormat, QSettings.Scope.UserScope, "gelrig", "gui")
+
+
+def queue_file() -> Path:
+    """Where the queue is kept: ``gelrig-queue.json`` beside the settings file."""
+    return Path(settings().fileName()).with_name("gelrig-queue.json")
 
 
 def fit_to_screen(window: QWidget) -> None:
@@ -144,6 +154,13 @@ class MainWindow(QMainWindow):
         self.fit_panel = FitPanel()
         self.results = ResultsBrowser(services.runs_dir or Path("runs"), self.open_run,
                                       lambda line: self.log.add(line, "warning"))
+        self.queue_runner = QueueRunner(self.desk, lambda: self._rehearser(self.desk.spec),
+                                        self.start_queued, queue_file(), self)
+        self.queue_runner.said.connect(self.log.add)
+        if self.queue_runner.warning:
+            self.log.add(self.queue_runner.warning, "warning")
+        self.queue = QueuePanel(self.queue_runner, self._queue_item,
+                                lambda then: self.ask_if_loaded("Start the queue", then))
         self.header = Header(self.banner)
         self.stop_button = self.header.stop_button
         self.report_button = self.header.report_button
@@ -218,7 +235,8 @@ class MainWindow(QMainWindow):
                 (("left", 0, "Protocol"), ("left", 1, "Manual control"),
                  ("left", 2, "Instruments"), ("right", 0, "Run plots"),
                  ("right", 1, "Manual (live) plot"), ("right", 2, "Live fit"),
-                 ("right", 3, "Results (runs found and compared)"))):
+                 ("right", 3, "Results (runs found and compared)"),
+                 ("left", 3, "Queue"))):
             action = view.addAction(name)
             action.setShortcut(QKeySequence(f"Ctrl+{i + 1}"))
             action.triggered.connect(partial(self.show_tab, tabs, index))
@@ -248,12 +266,12 @@ class MainWindow(QMainWindow):
             self.set_appearance("system")
 
     def show_tab(self, side: str, index: int) -> None:
-        """View menu: bring a tab forward (Ctrl+1..7)."""
+        """View menu: bring a tab forward (Ctrl+1..8)."""
         (self.left_tabs if side == "left" else self.plot_tabs).setCurrentIndex(index)
 
     def _on_plot_tab(self, index: int) -> None:
         """The Results tab lists the runs as they are now each time it is brought forward."""
-        if self.plot_tabs.widget(index) is self.results:
+        if self.plot_tabs.widget(index) is self.results_tab:
             self.results.refresh()
 
     def home_stage(self) -> None:
@@ -289,11 +307,13 @@ class MainWindow(QMainWindow):
         self.left_tabs.addTab(_scrolled(self.protocol), "Protocol")
         self.left_tabs.addTab(_scrolled(self.manual), "Manual control")
         self.left_tabs.addTab(_scrolled(self.instruments), "Instruments")
+        self.left_tabs.addTab(_scrolled(self.queue), "Queue")
         self.plot_tabs = QTabWidget()
         self.plot_tabs.addTab(self.plot_stack, "Run")
         self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
         self.plot_tabs.addTab(self.fit_panel, "Live fit")
-        self.plot_tabs.addTab(self.results, "Results")
+        self.results_tab = _scrolled(self.results)
+        self.plot_tabs.addTab(self.results_tab, "Results")
         self.plot_tabs.currentChanged.connect(self._on_plot_tab)
         right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(self.plot_tabs)
@@ -706,6 +726,38 @@ class MainWindow(QMainWindow):
             self.message("Cannot start the run", str(exc))
             return
         self.log.add(f"run of {spec.name!r} started; recording to {path}")
+
+    def start_queued(self, procedure: Procedure, info: RunInfo) -> str:
+        """The queue's run, started as Run starts one (the same desk and run host); '' or
+        the one line why it did not start."""
+        if self.desk.running:
+            return "a run is already going"
+        try:
+            path = self.desk.start_run(procedure, info)
+        except Refused as exc:  # nothing moved, nothing made (ADR 0330)
+            self.refuse_run(str(exc), "made")
+            return str(exc)
+        except (GelrigError, OSError) as exc:
+            self.log.add(f"cannot start the queued run: {exc}", "error")
+            return str(exc)
+        self.log.add(f"queued run of {procedure.name!r} started; recording to {path}")
+        return ""
+
+    def _queue_item(self) -> QueueItem | str:
+        """The Protocol tab's file or script as a queue item (with its script parameters,
+        the Sample fields and the run record), or why it cannot be queued."""
+        panel = self.protocol
+        if panel.path is None:
+            return "open a protocol file or script first: the queue runs files"
+        if panel.modified:
+            return "save the protocol first: the queue runs the file as saved"
+        if panel.errors or panel.info_form.info is None:
+            return "fix the fields first: " + "; ".join(panel.errors + panel.info_form.errors)
+        info = panel.info_form.info
+        params = {name: entry.text() for name, entry in panel.script_form.entries.items()
+                  if entry.text().strip()} if panel.is_script else {}
+        return QueueItem(str(panel.path), params, panel.sample_form.table(), info.operator,
+                         info.note, list(info.tags))
 
     def refuse_run(self, line: str, folder: str) -> None:
         """A run refused before anything moved: its one line in the log, the status bar and

@@ -33,7 +33,7 @@ def lab(tmp_path_factory):
 def browse(qtbot, window, root):
     """The Results tab on ``root``, brought forward (which lists the runs)."""
     window.results.root = root
-    window.plot_tabs.setCurrentWidget(window.results)
+    window.plot_tabs.setCurrentWidget(window.results_tab)
     return window.results
 
 
