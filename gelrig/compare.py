@@ -92,10 +92,12 @@ def pass_peaks(run: LoadedRun) -> list[tuple[Any, Any, Any]]:
     from gelrig.instrument.analysis.shear_analysis import pass_forces, split_passes
 
     out = []
-    arm = _arm(run.meta)
+    arm: float | None = None  # read once a ladder is found (the analysis is slow to import)
     for step in run:
         if step.kind not in LADDER_KINDS:
             continue
+        if arm is None:
+            arm = _arm(run.meta)
         index, f_h, f_v = [], [], []
         for recorded in split_passes(step.columns):
             try:

@@ -10,6 +10,8 @@ colour per run, named by its folder and sample.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import pyqtgraph as pg
@@ -25,8 +27,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gelrig.catalog import LoadedRun
-from gelrig.compare import compare_rows, hold_curves, pass_peaks
+from gelrig.catalog import LoadedRun, load_run
+from gelrig.compare import HoldCurve, compare_rows, hold_curves, pass_peaks
 from gelrig.gui.plots import colour, make_plot
 
 #: The panels: key, title, x (name, SI unit), y (name, SI unit).
@@ -43,6 +45,22 @@ _STYLES = (Qt.PenStyle.SolidLine, Qt.PenStyle.DashLine, Qt.PenStyle.DotLine,
 def label(run: LoadedRun) -> str:
     """A run's name in a legend: ``<folder> (<sample>)``."""
     return f"{run.path.name} ({run.sample or 'no sample'})"
+
+
+@dataclass(frozen=True)
+class RunCurves:
+    """What is drawn of one run: its legend label, its holds, its ladders' peaks per pass."""
+
+    name: str
+    label: str
+    holds: list[HoldCurve]
+    ladders: list[tuple[Any, Any, Any]]
+
+
+def curves_of(path: str | Path) -> RunCurves:
+    """Read a run's curves (off the GUI thread: the step files are read here)."""
+    run = load_run(path)
+    return RunCurves(run.path.name, label(run), hold_curves(run), pass_peaks(run))
 
 
 class CompareView(QWidget):
@@ -63,7 +81,9 @@ class CompareView(QWidget):
         self.plots: dict[str, pg.PlotWidget] = {}
         for key, title, x, y in PANELS:
             plot = make_plot(title, x, y)
-            plot.addLegend(offset=(-5, 5), labelTextSize="8pt")
+            # where the curves seldom are: below the holds' plateau, above the ramp's foot
+            plot.addLegend(offset=(5, 5) if key == "force_z" else (-5, -5),
+                           labelTextSize="8pt")
             plot.setObjectName(f"compare_{key}")
             self.plots[key] = plot
         self.table = QTableWidget(0, 0)
@@ -74,18 +94,19 @@ class CompareView(QWidget):
         split.addWidget(self.table)
         split.setStretchFactor(0, 3)
         split.setStretchFactor(1, 2)
+        split.setSizes([330, 170])
+        self.table.verticalHeader().setVisible(False)
+        self.table.verticalHeader().setDefaultSectionSize(self.fontMetrics().height() + 6)
         layout.addWidget(split, 1)
-        self.runs: list[LoadedRun] = []
 
     def curves(self, key: str) -> list[pg.PlotDataItem]:
         """The curves drawn in panel ``key`` (``force_t``, ``force_z``, ``f_h``, ``f_v``)."""
         return list(self.plots[key].getPlotItem().listDataItems())
 
-    def show_runs(self, runs: Sequence[LoadedRun], entries: Sequence[Mapping[str, Any]]
+    def show_runs(self, runs: Sequence[RunCurves], entries: Sequence[Mapping[str, Any]]
                   ) -> list[str]:
         """Overlay ``runs`` (their catalog ``entries`` in the same order give the table);
         returns notes on runs with nothing to draw."""
-        self.runs = list(runs)
         for plot in self.plots.values():
             plot.getPlotItem().clear()
             legend = plot.getPlotItem().legend
@@ -94,23 +115,20 @@ class CompareView(QWidget):
         notes = []
         for k, run in enumerate(runs):
             pen_colour = colour(k)
-            drawn = False
-            for n, hold in enumerate(hold_curves(run)):
+            for n, hold in enumerate(run.holds):
                 pen = pg.mkPen(pen_colour, width=1.5, style=_STYLES[n % len(_STYLES)])
-                name = label(run) if n == 0 else None
+                name = run.label if n == 0 else None
                 self._draw("force_t", hold.t, hold.force, pen, name)
                 if hold.position is not None:
                     self._draw("force_z", hold.position, hold.force, pen, name)
-                drawn = True
-            for n, (index, f_h, f_v) in enumerate(pass_peaks(run)):
+            for n, (index, f_h, f_v) in enumerate(run.ladders):
                 pen = pg.mkPen(pen_colour, width=1.5, style=_STYLES[n % len(_STYLES)])
-                name = label(run) if n == 0 else None
+                name = run.label if n == 0 else None
                 for key, values in (("f_h", f_h), ("f_v", f_v)):
                     self.plots[key].plot(index, values, pen=pen, symbol="o", symbolSize=5,
                                          symbolBrush=pen_colour, name=name)
-                drawn = drawn or bool(index.size)
-            if not drawn:
-                notes.append(f"{run.path.name}: no hold or ladder recorded")
+            if not run.holds and not any(index.size for index, _h, _v in run.ladders):
+                notes.append(f"{run.name}: no hold or ladder recorded")
         self._arrange()
         self._fill_table(compare_rows(entries))
         self.note.setText("; ".join(notes) if notes else

@@ -81,11 +81,13 @@ from gelrig.protocols.events import (
     StepStarted,
 )
 from gelrig.protocols.manual_motion import Guarded
+from gelrig.protocols.plan import dry_run
 from gelrig.protocols.procedure import Procedure
 from gelrig.protocols.rig import Rig
 from gelrig.protocols.rigfile import RigSpec
 from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.safestop import SafeState
+from gelrig.protocols.spec import ProtocolSpec
 
 #: The pace control of simulated time.
 PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100.0),
@@ -312,7 +314,7 @@ class MainWindow(QMainWindow):
         self.plot_tabs.addTab(self.plot_stack, "Run")
         self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
         self.plot_tabs.addTab(self.fit_panel, "Live fit")
-        self.results_tab = _scrolled(self.results)
+        self.results_tab = self.results  # not scrolled: its table and plots shrink
         self.plot_tabs.addTab(self.results_tab, "Results")
         self.plot_tabs.currentChanged.connect(self._on_plot_tab)
         right = QSplitter(Qt.Orientation.Vertical)
@@ -740,6 +742,9 @@ class MainWindow(QMainWindow):
         except (GelrigError, OSError) as exc:
             self.log.add(f"cannot start the queued run: {exc}", "error")
             return str(exc)
+        limits = self.desk.spec.limits if self.desk.spec is not None else None
+        if isinstance(procedure, ProtocolSpec) and limits is not None:  # progress and ETA
+            self.protocol.run_plan = dry_run(procedure, limits)
         self.log.add(f"queued run of {procedure.name!r} started; recording to {path}")
         return ""
 
@@ -804,7 +809,8 @@ class MainWindow(QMainWindow):
         self.report_button.setVisible(False)
         self.report_action.setEnabled(False)
         self.plot_tabs.setCurrentIndex(0)
-        self.left_tabs.setCurrentIndex(0)
+        if not self.queue_runner.active:  # a queue's runs: the Queue tab stays in view
+            self.left_tabs.setCurrentIndex(0)
         self.manual.set_enabled(False)
         self.instruments.set_connected(True, busy=True)
         self.protocol.set_state(RunState.RUNNING)

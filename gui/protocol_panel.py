@@ -186,6 +186,8 @@ class ProtocolPanel(QGroupBox):
         self.state = RunState.IDLE
         self.pause_requested = False
         self.plan: PlanSummary | None = None
+        #: the plan of a run not started from the form (a queued one): its progress and ETA
+        self.run_plan: PlanSummary | None = None
         self.rehearse_fn: Rehearse | None = None
         self.rehearsal: RehearsalReport | None = None
         self.rehearsal_error = ""
@@ -345,6 +347,8 @@ class ProtocolPanel(QGroupBox):
             self.cancel_rehearsal()
         if state != RunState.RUNNING:
             self.pause_requested = False
+        if state.finished:
+            self.run_plan = None
         if state == RunState.PAUSED:
             self.status.setText("paused at a checkpoint (nothing moves); Resume or Abort")
         elif state.finished:
@@ -382,9 +386,10 @@ class ProtocolPanel(QGroupBox):
         self._update()
 
     def show_progress(self, progress: Progress, step_name: str = "") -> None:
-        if self.plan is None:
+        plan = self.run_plan or self.plan
+        if plan is None:
             return
-        fraction, left = eta(self.plan, progress)
+        fraction, left = eta(plan, progress)
         self.progress.setValue(round(1000 * min(max(fraction, 0.0), 1.0)))
         if self.real_time or self.pace == 1.0:  # lab time is wall time
             wall = ""
@@ -393,7 +398,7 @@ class ProtocolPanel(QGroupBox):
         else:
             wall = f" (≈ {lab_time(left / self.pace)} at {self.pace:g}x)"
         # the run's step index (as in run.json, the step files, the log and the plots)
-        last = len(self.plan.durations) - 1
+        last = len(plan.durations) - 1
         what = f"step {progress.index}" + (f" {step_name}" if step_name else "")
         what += f" (steps 0–{last})"
         if progress.message:

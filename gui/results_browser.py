@@ -10,11 +10,12 @@ since, until. A bad filter is its one line under the filters; the list is left a
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QGridLayout,
@@ -30,9 +31,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gelrig.catalog import find_runs, load_run
-from gelrig.gui.compare_view import CompareView
-from gelrig.instrument.core.errors import ConfigError, GelrigError
+from gelrig.catalog import find_runs
+from gelrig.gui.compare_view import CompareView, curves_of
+from gelrig.instrument.core.errors import ConfigError
 
 #: Filters: key (a ``find_runs`` keyword), placeholder.
 FILTERS = (("sample", "gel-A*"), ("operator", "ada"), ("protocol", "*hold*"),
@@ -124,6 +125,7 @@ class ResultsBrowser(QWidget):
             QHeaderView.ResizeMode.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(False)
+        self.table.verticalHeader().setDefaultSectionSize(self.fontMetrics().height() + 6)
         self.table.itemSelectionChanged.connect(self._update_buttons)
         self.table.doubleClicked.connect(lambda _index: self.open_selected())
         self.compare = CompareView()
@@ -131,8 +133,17 @@ class ResultsBrowser(QWidget):
         split.addWidget(self.table)
         split.addWidget(self.compare)
         split.setStretchFactor(0, 1)
-        split.setStretchFactor(1, 2)
+        split.setStretchFactor(1, 3)
+        split.setSizes([130, 510])  # the list short, the comparison tall
+        self.table.setMinimumHeight(80)
         layout.addWidget(split, 1)
+        self._token = 0
+        self.loading = False  # a comparison is being read
+        self._loaded = _Loaded(self)
+        self._loaded.ready.connect(self._show, Qt.ConnectionType.QueuedConnection)
+        # a minimum of its own: the filters' rows would otherwise set the window's, which
+        # must fit 1280x720 at 2x (tests/gui/test_layout.py); the table and plots shrink
+        self.setMinimumSize(1, 1)
         self._update_buttons()
 
     # ---- the list -----------------------------------------------------------------------
@@ -199,15 +210,41 @@ class ResultsBrowser(QWidget):
         if len(chosen) == 1:
             self.open_run(Path(chosen[0]["path"]))
 
-    def compare_selected(self) -> list[str]:
-        """Overlay the selected runs (two or more); returns the notes said."""
+    def compare_selected(self) -> None:
+        """Overlay the selected runs (two or more): their step files are read on a thread
+        (a day-long hold is large), then drawn here."""
         chosen = self.selected()
         if len(chosen) < 2:
             self._say("select two runs or more to compare", error=True)
-            return []
-        try:
-            runs = [load_run(entry["path"]) for entry in chosen]
-        except (GelrigError, OSError, KeyError, ValueError) as exc:
-            self._say(f"cannot compare: {exc}", error=True)
-            return []
-        return self.compare.show_runs(runs, chosen)
+            return
+        self._token += 1
+        token, self.loading = self._token, True
+        self._say(f"reading {len(chosen)} runs…")
+
+        def work() -> None:
+            try:
+                result: object = [curves_of(entry["path"]) for entry in chosen]
+            except Exception as exc:  # a damaged step file: said, the GUI goes on
+                result = exc
+            self._loaded.ready.emit(token, (chosen, result))
+
+        threading.Thread(target=work, daemon=True, name="gelrig-compare").start()
+
+    def _show(self, token: int, loaded: tuple[list[dict[str, Any]], object]) -> None:
+        if token != self._token:
+            return  # a newer comparison was asked for
+        self.loading = False
+        chosen, result = loaded
+        if isinstance(result, BaseException):
+            self._say(f"cannot compare: {type(result).__name__}: {result}", error=True)
+            return
+        assert isinstance(result, list)
+        notes = self.compare.show_runs(result, chosen)
+        self._say("; ".join(notes) if notes else f"{len(chosen)} runs compared",
+                  error=bool(notes))
+
+
+class _Loaded(QObject):
+    """Carries a comparison read on a thread back to the GUI thread."""
+
+    ready = Signal(int, object)

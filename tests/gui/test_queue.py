@@ -72,8 +72,11 @@ def test_a_two_item_queue_runs_both_each_rehearsed_first(qtbot, open_window, tmp
     calls = counted(window)
     window.protocol.info_form.edits["tags"].setText("queued")
     queue_sweep(window, protocol_file(tmp_path), "step[1].hold", "1 s; 2 s")
+    window.show_tab("left", 3)
     window.queue.start_button.click()
     wait_queue(qtbot, window)
+    assert window.left_tabs.currentIndex() == 3  # the queue stayed in view
+    assert window.protocol.run_plan is None  # the queued run's plan, dropped at its end
     items = window.queue_runner.items
     assert [i.state for i in items] == [COMPLETED, COMPLETED], [i.reason for i in items]
     assert len(calls) == 2 and [p.steps[1].params.hold for p in calls] == [1, 2]

@@ -80,6 +80,7 @@ def test_two_runs_overlay_as_two_curves_with_their_values_side_by_side(qtbot, op
     browser.select(["a1", "b2"])
     assert browser.compare_button.isEnabled() and not browser.open_button.isEnabled()
     browser.compare_button.click()
+    qtbot.waitUntil(lambda: not browser.loading, timeout=20_000)
     view = browser.compare
     force_t, force_z = view.curves("force_t"), view.curves("force_z")
     assert len(force_t) == 2 and len(force_z) == 2
@@ -137,6 +138,7 @@ def test_two_shear_runs_overlay_f_h_and_f_v_per_pass(qtbot, open_window, tmp_pat
     browser = browse(qtbot, window, root)
     browser.select(["bead-S1", "bead-S2"])
     browser.compare_button.click()
+    qtbot.waitUntil(lambda: not browser.loading, timeout=20_000)
     view = browser.compare
     assert len(view.curves("f_h")) == 2 and len(view.curves("f_v")) == 2
     assert not view.curves("force_t")
