@@ -1016,6 +1016,7 @@ class MainWindow(QMainWindow):
         if link is not None:  # once (a close may come twice)
             QGuiApplication.styleHints().colorSchemeChanged.disconnect(link)
         self._save_settings()
+        self.queue_runner.stop()  # a queued rehearsal abandoned: its item waits again
         self.protocol.cancel_rehearsal()
         logging.getLogger().removeHandler(self._log_handler)
         if self._file_log is not None:

@@ -75,6 +75,10 @@ class QueuePanel(QWidget):
                                     "or STOP ends it)")
         self.remove_button = QPushButton("Remove")
         self.clear_button = QPushButton("Clear finished")
+        self.start_button.setToolTip("run the queued items in turn, from the first waiting "
+                                     "one; each is rehearsed on the rig's twin first")
+        self.remove_button.setToolTip("take the selected item out of the queue")
+        self.clear_button.setToolTip("drop the items that ran or where the queue stopped")
         self.start_button.clicked.connect(lambda: self.ask_start(self.runner.start))
         self.stop_button.clicked.connect(self.runner.stop)
         self.remove_button.clicked.connect(lambda: self.runner.remove(self.list.currentRow()))

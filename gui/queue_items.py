@@ -26,8 +26,10 @@ from gelrig.protocols.runinfo import RunInfo, run_info
 
 #: Format version of the queue file.
 VERSION = 1
-#: An item's states: waiting, on the rig now, done, or where the queue stopped.
-QUEUED, RUNNING, COMPLETED, STOPPED = "queued", "running", "completed", "stopped"
+#: An item's states: waiting, being rehearsed, on the rig now, done, or where the queue
+#: stopped.
+QUEUED, REHEARSING, RUNNING = "queued", "rehearsing", "running"
+COMPLETED, STOPPED = "completed", "stopped"
 
 
 @dataclass
@@ -135,7 +137,8 @@ def save_queue(path: Path, items: list[QueueItem]) -> None:
 def load_queue(path: Path) -> tuple[list[QueueItem], str]:
     """The queue kept in ``path`` and a warning line ('' if none). A file that cannot be
     read as a queue is set aside (``<name>.corrupt-<time>``) and the queue starts empty; an
-    item left ``running`` by a window that went away is ``stopped``."""
+    item left ``running`` by a window that went away is ``stopped``, one left
+    ``rehearsing`` is ``queued`` again."""
     if not path.exists():
         return [], ""
     try:
@@ -155,4 +158,6 @@ def load_queue(path: Path) -> tuple[list[QueueItem], str]:
     for item in items:
         if item.state == RUNNING:
             item.state, item.reason = STOPPED, "the window closed while it ran"
+        elif item.state == REHEARSING:  # nothing moved for it: it waits again
+            item.state = QUEUED
     return items, ""

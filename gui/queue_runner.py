@@ -21,6 +21,7 @@ from gelrig.gui.protocol_panel import Rehearse
 from gelrig.gui.queue_items import (
     COMPLETED,
     QUEUED,
+    REHEARSING,
     RUNNING,
     STOPPED,
     QueueItem,
@@ -35,8 +36,6 @@ from gelrig.protocols.rehearsal import RehearsalReport
 from gelrig.protocols.runinfo import RunInfo
 
 log = logging.getLogger(__name__)
-#: An item while its rehearsal runs.
-REHEARSING = "rehearsing"
 #: Poll period (ms) of a rehearsal's result.
 POLL_MS = 100
 

@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
 
 from gelrig.catalog import find_runs
 from gelrig.gui.compare_view import CompareView, curves_of
+from gelrig.instrument.core.catalog import select_entries
 from gelrig.instrument.core.errors import ConfigError
 
 #: Filters: key (a ``find_runs`` keyword), placeholder.
@@ -73,7 +74,8 @@ class ResultsBrowser(QWidget):
     """Filters, the runs found, Open and Compare, and the comparison below.
 
     ``open_run(path)`` opens a run in the run view; ``warn(line)`` is told each warning
-    line of the catalog (a damaged index rebuilt, a locked one not used)."""
+    line of the catalog (a damaged index rebuilt, a locked one not used). The list and a
+    comparison are read on threads; ``refreshing`` and ``loading`` say they are under way."""
 
     def __init__(self, root: Path, open_run: Callable[[Path], object],
                  warn: Callable[[str], object] | None = None, parent: QWidget | None = None):
@@ -137,10 +139,12 @@ class ResultsBrowser(QWidget):
         split.setSizes([130, 510])  # the list short, the comparison tall
         self.table.setMinimumHeight(80)
         layout.addWidget(split, 1)
-        self._token = 0
+        self._token = self._list_token = 0
         self.loading = False  # a comparison is being read
+        self.refreshing = False  # the list is being read
         self._loaded = _Loaded(self)
         self._loaded.ready.connect(self._show, Qt.ConnectionType.QueuedConnection)
+        self._loaded.listed.connect(self._listed, Qt.ConnectionType.QueuedConnection)
         # a minimum of its own: the filters' rows would otherwise set the window's, which
         # must fit 1280x720 at 2x (tests/gui/test_layout.py); the table and plots shrink
         self.setMinimumSize(1, 1)
@@ -148,28 +152,49 @@ class ResultsBrowser(QWidget):
 
     # ---- the list -----------------------------------------------------------------------
     def refresh(self) -> None:
-        """List the runs that match the filters (the index brought up to date first)."""
-        self.warnings = []
+        """List the runs that match the filters. The catalog is read on a thread (a first
+        index of many runs, or one locked by another process for up to 2 s, must not hold
+        up the window): ``refreshing`` until the list is shown."""
         if not self.root.is_dir():
-            self.entries = []
+            self.entries, self.warnings = [], []
             self._fill()
             self._say(f"no runs yet: {self.root} does not exist")
             return
-        texts = {key: edit.text() for key, edit in self.filters.items()}
         try:
-            entries = find_runs(self.root, warn=self._warned, **filter_values(texts))
-        except ConfigError as exc:  # a bad filter: its one line, the list kept
+            filters = filter_values({key: edit.text() for key, edit in self.filters.items()})
+            select_entries([], **filters)  # a bad filter: its one line now, the list kept
+        except ConfigError as exc:
             self._say(str(exc), error=True)
             return
-        self.entries = entries
-        self._fill()
-        line = f"{len(entries)} run(s) in {self.root}"
-        self._say("; ".join([*self.warnings, line]), error=bool(self.warnings))
+        self._list_token += 1
+        token, root, self.refreshing = self._list_token, self.root, True
 
-    def _warned(self, line: str) -> None:
-        self.warnings.append(line)
-        if self.warn is not None:
-            self.warn(line)
+        def work() -> None:
+            warnings: list[str] = []
+            try:
+                result: object = find_runs(root, warn=warnings.append, **filters)
+            except Exception as exc:  # an unreadable folder: said, the GUI goes on
+                result = exc
+            self._loaded.listed.emit(token, (warnings, result))
+
+        threading.Thread(target=work, daemon=True, name="gelrig-runs").start()
+
+    def _listed(self, token: int, found: tuple[list[str], object]) -> None:
+        warnings, result = found
+        for line in warnings:  # each said once, even from a list superseded since
+            if self.warn is not None:
+                self.warn(line)
+        if token != self._list_token:
+            return
+        self.refreshing, self.warnings = False, warnings
+        if isinstance(result, BaseException):
+            self._say(f"cannot list the runs in {self.root}: {result}", error=True)
+            return
+        assert isinstance(result, list)
+        self.entries = result
+        self._fill()
+        line = f"{len(result)} run(s) in {self.root}"
+        self._say("; ".join([*warnings, line]), error=bool(warnings))
 
     def _say(self, text: str, error: bool = False) -> None:
         self.status.setText(text)
@@ -245,6 +270,7 @@ class ResultsBrowser(QWidget):
 
 
 class _Loaded(QObject):
-    """Carries a comparison read on a thread back to the GUI thread."""
+    """Carries what a thread read (the list, a comparison) back to the GUI thread."""
 
     ready = Signal(int, object)
+    listed = Signal(int, object)

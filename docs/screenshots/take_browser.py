@@ -64,6 +64,7 @@ def main(mode: str, out: str) -> None:
         window.right_split.setSizes([800, 70])  # the log pane short: the tab is the subject
         if mode == "results":
             window.plot_tabs.setCurrentWidget(window.results_tab)
+            pump(lambda: not window.results.refreshing, 60)
             window.results.select([e["name"] for e in window.results.entries[:2]])
             window.results.compare_button.click()
             pump(lambda: not window.results.loading, 60)

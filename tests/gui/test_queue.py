@@ -141,3 +141,16 @@ def test_the_queue_survives_a_new_window_and_a_corrupt_file_is_set_aside(
     assert len(warnings) == 1 and "set aside" in warnings[0]
     aside = list(path.parent.glob("gelrig-queue.json.corrupt-*"))
     assert len(aside) == 1 and aside[0].read_text() == "{ not json"
+
+
+def test_closing_during_a_rehearsal_leaves_the_item_queued(qtbot, open_window, tmp_path):
+    window = open_window(math.inf)
+    queue_sweep(window, protocol_file(tmp_path), "step[1].hold", "1 s")
+    window.queue.start_button.click()
+    assert [i.state for i in window.queue_runner.items] == ["rehearsing"]
+    window._leave_loaded = True
+    window.close()  # before the rehearsal is collected: nothing started, nothing moved
+    again = open_window(math.inf)
+    assert [i.state for i in again.queue_runner.items] == [QUEUED]
+    assert not (tmp_path / "runs").exists() or not [
+        p for p in (tmp_path / "runs").iterdir() if (p / "run.json").exists()]

@@ -34,7 +34,15 @@ def browse(qtbot, window, root):
     """The Results tab on ``root``, brought forward (which lists the runs)."""
     window.results.root = root
     window.plot_tabs.setCurrentWidget(window.results_tab)
+    assert window.results.refreshing  # read on a thread: the window goes on meanwhile
+    qtbot.waitUntil(lambda: not window.results.refreshing, timeout=20_000)
     return window.results
+
+
+def find(qtbot, browser):
+    """Press Find and wait for the list."""
+    browser.find_button.click()
+    qtbot.waitUntil(lambda: not browser.refreshing, timeout=20_000)
 
 
 def listed(browser):
@@ -54,16 +62,16 @@ def test_the_runs_are_listed_with_samples_and_statuses_and_filtered(qtbot, open_
     status = browser.table.item(rows["killed"], 5).text()
     assert status == "interrupted (run.json: running)"  # as gelrig runs shows it
     browser.filters["sample"].setText("gel-B2")
-    browser.find_button.click()
+    find(qtbot, browser)
     assert [e["name"] for e in browser.entries] == ["b2"] and browser.table.rowCount() == 1
     browser.filters["sample"].setText("gel-A*, gel-C3")
     browser.filters["operator"].setText("ada")
-    browser.find_button.click()
+    find(qtbot, browser)
     assert sorted(listed(browser)) == ["a1", "c3"]
     browser.filters["sample"].setText("")
     browser.filters["operator"].setText("")
     browser.filters["status"].setText("interrupted")
-    browser.find_button.click()
+    find(qtbot, browser)
     assert sorted(listed(browser)) == ["killed"]
     browser.filters["since"].setText("last tuesday")  # a bad filter: its line, list kept
     browser.find_button.click()
@@ -119,10 +127,10 @@ def test_a_damaged_index_is_rebuilt_with_one_warning_and_the_tab_goes_on(
     assert "rebuilt" in browser.status.text()
     logged = [line for line in window.log.toPlainText().splitlines() if "rebuilt" in line]
     assert len(logged) == 1
-    browser.refresh()  # rebuilt: no warning the second time
+    find(qtbot, browser)  # rebuilt: no warning the second time
     assert browser.warnings == [] and browser.table.rowCount() == 4
     (root / CATALOG_NAME).unlink()  # deleted: built again, silently
-    browser.refresh()
+    find(qtbot, browser)
     assert browser.warnings == [] and (root / CATALOG_NAME).is_file()
 
 
