@@ -133,6 +133,10 @@ class QueueRunner(QObject):
         except ConfigError as exc:
             self._halt(item, f"not started: {exc}")
             return
+        except Exception as exc:  # a script that no longer imports: said, the queue stops
+            self._halt(item, f"not started: {item.path} cannot be loaded "
+                             f"({type(exc).__name__}: {exc})")
+            return
         spec, rehearse = self.desk.spec, self.rehearser()
         if self.desk.rig is None or spec is None:
             self._halt(item, "not started: connect the rig")

@@ -8,7 +8,7 @@ import json
 import math
 
 from gelrig.gui.mainwindow import queue_file
-from gelrig.gui.queue_items import COMPLETED, QUEUED, STOPPED
+from gelrig.gui.queue_items import COMPLETED, QUEUED, STOPPED, QueueItem
 from tests.gui import test_app
 from tests.gui.test_sample_fields import toml_text
 
@@ -154,3 +154,16 @@ def test_closing_during_a_rehearsal_leaves_the_item_queued(qtbot, open_window, t
     assert [i.state for i in again.queue_runner.items] == [QUEUED]
     assert not (tmp_path / "runs").exists() or not [
         p for p in (tmp_path / "runs").iterdir() if (p / "run.json").exists()]
+
+
+def test_a_script_that_no_longer_loads_stops_the_queue_without_a_traceback(
+        qtbot, open_window, tmp_path):
+    window = open_window(math.inf)
+    script = tmp_path / "broken.py"
+    script.write_text("def protocol(:\n")
+    window.queue_runner.add([QueueItem(str(script)), QueueItem(str(protocol_file(tmp_path)))])
+    window.queue_runner.start()
+    item, after = window.queue_runner.items
+    assert (item.state, after.state) == (STOPPED, QUEUED)
+    assert item.reason.startswith("not started: ") and "broken.py" in item.reason
+    assert not window.queue_runner.active and window.queue.start_button.isEnabled()

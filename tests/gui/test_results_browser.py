@@ -134,7 +134,6 @@ def test_a_damaged_index_is_rebuilt_with_one_warning_and_the_tab_goes_on(
     assert browser.warnings == [] and (root / CATALOG_NAME).is_file()
 
 
-@pytest.mark.slow
 def test_two_shear_runs_overlay_f_h_and_f_v_per_pass(qtbot, open_window, tmp_path):
     protocol = tmp_path / "ladder.toml"
     protocol.write_text(TINY_LADDER)

@@ -3,10 +3,13 @@ tags fields above Run go into run.json as ``gelrig run --operator --note --tag``
 the catalog lists the run by them, a bad value keeps Run disabled with the CLI's one line,
 and the fields are remembered in a new window."""
 
+import contextlib
 import json
 import math
+import sqlite3
 
 from gelrig.catalog import find_runs
+from gelrig.instrument.core.catalog import CATALOG_NAME
 from tests.gui import test_app
 
 open_window = test_app.open_window  # the fixture: a window on a built-in simulated rig
@@ -25,13 +28,18 @@ def test_the_fields_are_recorded_in_run_json_and_the_catalog(qtbot, open_window,
     test_app.wait_finished(qtbot, window, timeout=60_000)
     meta = json.loads((window.desk.run_path / "run.json").read_text())
     assert meta["status"] == "completed"
+    index = tmp_path / "runs" / CATALOG_NAME  # written by the run host as the run ended
+    with contextlib.closing(sqlite3.connect(index)) as con:
+        row = con.execute("SELECT operator, note, status FROM runs WHERE name = ?",
+                          (window.desk.run_path.name,)).fetchone()
+        tags = [t for (t,) in con.execute("SELECT tag FROM tags")]
+    assert row == ("ada", "fresh batch, cured 2 h", "completed") and tags == ["week48", "fast"]
     assert (meta["operator"], meta["note"], meta["tags"]) == (
         "ada", "fresh batch, cured 2 h", ["week48", "fast"])
     assert meta["finished_wall"]  # the host's teardown wrote it, as for a CLI run
     listed = find_runs(tmp_path / "runs", operator="ada", tag="fast")
     assert [e["path"] for e in listed] == [str(window.desk.run_path)]
     assert listed[0]["status"] == "completed" and listed[0]["note"] == "fresh batch, cured 2 h"
-    assert (tmp_path / "runs" / ".gelrig-runs.sqlite").is_file()  # indexed by the host
 
 
 def test_a_bad_value_keeps_run_disabled_with_the_clis_line(qtbot, open_window):
