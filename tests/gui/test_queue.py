@@ -167,3 +167,24 @@ def test_a_script_that_no_longer_loads_stops_the_queue_without_a_traceback(
     assert (item.state, after.state) == (STOPPED, QUEUED)
     assert item.reason.startswith("not started: ") and "broken.py" in item.reason
     assert not window.queue_runner.active and window.queue.start_button.isEnabled()
+
+
+def test_a_script_sweep_runs_with_its_parameter_values(qtbot, open_window, tmp_path):
+    from tests.gui.test_script_in_window import SCRIPT
+
+    window = open_window(math.inf)
+    path = tmp_path / "relax.py"
+    path.write_text(SCRIPT)
+    window.protocol.load_file(path)
+    window.protocol.script_form.entries["hold"].setText('"1 s"')
+    window.queue.param.setText("strain")
+    window.queue.values.setText("0.01; 0.02")
+    items = window.queue.add_current()
+    assert [i.params for i in items] == [{"hold": '"1 s"', "strain": v} for v in ("0.01", "0.02")]
+    window.queue_runner.start()
+    wait_queue(qtbot, window)
+    assert [i.state for i in items] == [COMPLETED, COMPLETED], [i.reason for i in items]
+    ramps = [json.loads((tmp_path / "runs" / i.run / "run.json").read_text())["steps"][1]
+             for i in items]
+    assert [(r["params"]["strain"], r["params"]["hold"]) for r in ramps] == [(0.01, 1.0),
+                                                                          (0.02, 1.0)]
