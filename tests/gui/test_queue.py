@@ -7,6 +7,8 @@ with one warning."""
 import json
 import math
 
+import pytest
+
 from gelrig.gui.mainwindow import queue_file
 from gelrig.gui.queue_items import COMPLETED, QUEUED, STOPPED, QueueItem
 from tests.gui import test_app
@@ -169,6 +171,7 @@ def test_a_script_that_no_longer_loads_stops_the_queue_without_a_traceback(
     assert not window.queue_runner.active and window.queue.start_button.isEnabled()
 
 
+@pytest.mark.slow
 def test_a_script_sweep_runs_with_its_parameter_values(qtbot, open_window, tmp_path):
     from tests.gui.test_script_in_window import SCRIPT
 
