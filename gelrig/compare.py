@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from gelrig.catalog import LoadedRun, flat_results
 
@@ -62,26 +62,42 @@ def _arm(meta: Mapping[str, Any]) -> float:
     return arm_of(meta, [])
 
 
-def _hold_curves(run: LoadedRun) -> list[tuple[str, Any, Any]]:
+class HoldCurve(NamedTuple):
+    """One hold step's curve: time from the step's start (s), force (N), stage position (m;
+    None when the step did not record it)."""
+
+    step: str
+    t: Any
+    force: Any
+    position: Any
+
+
+def hold_curves(run: LoadedRun) -> list[HoldCurve]:
+    """The force curves of a compression run's holds (``HOLD_KINDS``), in recorded order."""
     out = []
     for step in run:
         if step.kind in HOLD_KINDS and {"t_s", "force_N"} <= set(step.columns):
             t, f = step["t_s"], step["force_N"]
             if t.size:
-                out.append((step.name, t - t[0], f))
+                z = step["position_m"] if "position_m" in step.columns else None
+                out.append(HoldCurve(step.name, t - t[0], f, z))
     return out
 
 
-def _pass_peaks(run: LoadedRun) -> list[tuple[Any, Any, Any]]:
+def pass_peaks(run: LoadedRun) -> list[tuple[Any, Any, Any]]:
+    """Each shear ladder's (pass index, largest |F_h|, largest F_v) arrays (N), baseline-
+    corrected as the analysis does; a pass too short to read is left out."""
     import numpy as np
 
     from gelrig.instrument.analysis.shear_analysis import pass_forces, split_passes
 
     out = []
-    arm = _arm(run.meta)
+    arm: float | None = None  # read once a ladder is found (the analysis is slow to import)
     for step in run:
         if step.kind not in LADDER_KINDS:
             continue
+        if arm is None:
+            arm = _arm(run.meta)
         index, f_h, f_v = [], [], []
         for recorded in split_passes(step.columns):
             try:
@@ -102,8 +118,8 @@ def overlay_plot(runs: Sequence[LoadedRun], path: str | Path) -> tuple[Path, lis
 
     from gelrig.instrument.reports.plots import save_figure
 
-    holds = {id(r): _hold_curves(r) for r in runs}
-    ladders = {id(r): _pass_peaks(r) for r in runs}
+    holds = {id(r): hold_curves(r) for r in runs}
+    ladders = {id(r): pass_peaks(r) for r in runs}
     panels = (["hold"] if any(holds.values()) else []) + (
         ["F_h", "F_v"] if any(ladders.values()) else [])
     notes = [f"{r.path.name}: no hold or ladder recorded" for r in runs
@@ -114,7 +130,7 @@ def overlay_plot(runs: Sequence[LoadedRun], path: str | Path) -> tuple[Path, lis
     colours = [f"C{k % 10}" for k in range(len(runs))]
     for run, colour in zip(runs, colours, strict=True):
         label = f"{run.path.name} ({run.sample or 'no sample'})"
-        for k, (_, t, f) in enumerate(holds[id(run)]):
+        for k, (_, t, f, _z) in enumerate(holds[id(run)]):
             step = max(1, t.size // 4000)
             axes["hold"].plot(t[::step], f[::step] * 1e3, color=colour, lw=1.0,
                               ls=("-", "--", ":", "-.")[k % 4],

@@ -61,6 +61,7 @@ from gelrig.protocols.manual_motion import Guarded, Motion, run_motion, still_lo
 from gelrig.protocols.procedure import Procedure
 from gelrig.protocols.rig import CompressionRig, Rig
 from gelrig.protocols.rigfile import RigSpec
+from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.safestop import SafeState, bounded
 
 log = logging.getLogger(__name__)
@@ -570,8 +571,9 @@ class RigDesk(QObject):
         return Readout(values, set(rig.identities), {})
 
     # ---- a run --------------------------------------------------------------------------
-    def start_run(self, protocol: Procedure) -> Path:
-        """Create the run directory, wire the event stream, queue the run; returns its path.
+    def start_run(self, protocol: Procedure, info: RunInfo | None = None) -> Path:
+        """Create the run directory (``info``: operator, note, tags for run.json, as
+        ``gelrig run`` records them), wire the event stream, queue the run; returns its path.
 
         A protocol (file) whose steps the built rig's caps refuse raises
         :class:`Refused` before any folder is made (ADR 0330); a script's step refused
@@ -600,7 +602,7 @@ class RigDesk(QObject):
         root = self.services.runs_dir or Path("runs")
         out = default_run_dir(protocol, root)
         made = new_folders(out)
-        run = create_run(protocol, spec, self.clock_spec(), out)
+        run = create_run(protocol, spec, self.clock_spec(), out, info)
         try:  # refuses a protocol for the other rig
             host = RunHost(rig, protocol, run, bus=bus, control=control).__enter__()
         except BaseException:

@@ -59,6 +59,11 @@ from gelrig.gui.memory import release
 from gelrig.gui.messages import explain_fault, in_words
 from gelrig.gui.plots import CompressionPlots, IdlePlots, LivePlots, ShearPlots, configure
 from gelrig.gui.protocol_panel import ProtocolPanel, Rehearse
+from gelrig.gui.queue import QueuePanel
+from gelrig.gui.queue_items import QueueItem
+from gelrig.gui.queue_runner import QueueRunner
+from gelrig.gui.results_browser import ResultsBrowser
+from gelrig.gui.run_info_form import load_info, save_info
 from gelrig.gui.runview import RunWindow, step_lines
 from gelrig.gui.runview import fit_to_screen as fit
 from gelrig.gui.safety import Safety
@@ -76,9 +81,13 @@ from gelrig.protocols.events import (
     StepStarted,
 )
 from gelrig.protocols.manual_motion import Guarded
+from gelrig.protocols.plan import dry_run
+from gelrig.protocols.procedure import Procedure
 from gelrig.protocols.rig import Rig
 from gelrig.protocols.rigfile import RigSpec
+from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.safestop import SafeState
+from gelrig.protocols.spec import ProtocolSpec
 
 #: The pace control of simulated time.
 PACES: tuple[tuple[str, float], ...] = (("1x", 1.0), ("10x", 10.0), ("100x", 100.0),
@@ -102,6 +111,11 @@ def settings() -> QSettings:
     if path:
         return QSettings(path, QSettings.Format.IniFormat)
     return QSettings(QSettings.Format.IniFormat, QSettings.Scope.UserScope, "gelrig", "gui")
+
+
+def queue_file() -> Path:
+    """Where the queue is kept: ``gelrig-queue.json`` beside the settings file."""
+    return Path(settings().fileName()).with_name("gelrig-queue.json")
 
 
 def fit_to_screen(window: QWidget) -> None:
@@ -140,6 +154,15 @@ class MainWindow(QMainWindow):
         self.plot_stack.addWidget(self.shear_plots)
         self.idle_plots = IdlePlots()
         self.fit_panel = FitPanel()
+        self.results = ResultsBrowser(services.runs_dir or Path("runs"), self.open_run,
+                                      lambda line: self.log.add(line, "warning"))
+        self.queue_runner = QueueRunner(self.desk, lambda: self._rehearser(self.desk.spec),
+                                        self.start_queued, queue_file(), self)
+        self.queue_runner.said.connect(self.log.add)
+        if self.queue_runner.warning:
+            self.log.add(self.queue_runner.warning, "warning")
+        self.queue = QueuePanel(self.queue_runner, self._queue_item,
+                                lambda then: self.ask_if_loaded("Start the queue", then))
         self.header = Header(self.banner)
         self.stop_button = self.header.stop_button
         self.report_button = self.header.report_button
@@ -210,13 +233,15 @@ class MainWindow(QMainWindow):
         stop.setToolTip("Esc stops all motion from any window, a dialog included")
         view = self.menuBar().addMenu("&View")
         self.tab_actions: list[QAction] = []
-        for i, (tabs, name) in enumerate(
-                (("left", "Protocol"), ("left", "Manual control"), ("left", "Instruments"),
-                 ("right", "Run plots"), ("right", "Manual (live) plot"),
-                 ("right", "Live fit"))):
+        for i, (tabs, index, name) in enumerate(
+                (("left", 0, "Protocol"), ("left", 1, "Manual control"),
+                 ("left", 2, "Instruments"), ("right", 0, "Run plots"),
+                 ("right", 1, "Manual (live) plot"), ("right", 2, "Live fit"),
+                 ("right", 3, "Results (runs found and compared)"),
+                 ("left", 3, "Queue"))):
             action = view.addAction(name)
             action.setShortcut(QKeySequence(f"Ctrl+{i + 1}"))
-            action.triggered.connect(partial(self.show_tab, tabs, i % 3))
+            action.triggered.connect(partial(self.show_tab, tabs, index))
             self.tab_actions.append(action)
         look = view.addMenu("&Appearance")
         self.appearance_actions: dict[str, QAction] = {}
@@ -243,8 +268,13 @@ class MainWindow(QMainWindow):
             self.set_appearance("system")
 
     def show_tab(self, side: str, index: int) -> None:
-        """View menu: bring a tab forward (Ctrl+1..6)."""
+        """View menu: bring a tab forward (Ctrl+1..8)."""
         (self.left_tabs if side == "left" else self.plot_tabs).setCurrentIndex(index)
+
+    def _on_plot_tab(self, index: int) -> None:
+        """The Results tab lists the runs as they are now each time it is brought forward."""
+        if self.plot_tabs.widget(index) is self.results_tab:
+            self.results.refresh()
 
     def home_stage(self) -> None:
         """Rig menu (Ctrl+H): the manual panel's Home, when there is one and it is enabled."""
@@ -279,10 +309,14 @@ class MainWindow(QMainWindow):
         self.left_tabs.addTab(_scrolled(self.protocol), "Protocol")
         self.left_tabs.addTab(_scrolled(self.manual), "Manual control")
         self.left_tabs.addTab(_scrolled(self.instruments), "Instruments")
+        self.left_tabs.addTab(_scrolled(self.queue), "Queue")
         self.plot_tabs = QTabWidget()
         self.plot_tabs.addTab(self.plot_stack, "Run")
         self.plot_tabs.addTab(self.idle_plots, "Manual (live)")
         self.plot_tabs.addTab(self.fit_panel, "Live fit")
+        self.results_tab = self.results  # not scrolled: its table and plots shrink
+        self.plot_tabs.addTab(self.results_tab, "Results")
+        self.plot_tabs.currentChanged.connect(self._on_plot_tab)
         right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(self.plot_tabs)
         right.addWidget(self.log)
@@ -379,6 +413,7 @@ class MainWindow(QMainWindow):
         self._scheme_link: QMetaObject.Connection | None = (
             QGuiApplication.styleHints().colorSchemeChanged.connect(scheme_changed))
         self.protocol.sample_form.set_texts(load_texts(store))
+        self.protocol.info_form.set_texts(load_info(store))
         recent = store.value("recent/protocols") or []
         self.recent = [str(p) for p in (recent if isinstance(recent, list) else [recent])]
         self._fill_recent()
@@ -391,12 +426,15 @@ class MainWindow(QMainWindow):
         store.setValue("recent/protocols", self.recent)
         store.setValue("view/appearance", self.appearance)
         save_texts(store, self.protocol.sample_form.all_texts())
+        save_info(store, self.protocol.info_form.texts())
         store.sync()
 
     def remember_sample(self) -> None:
-        """Keep the Sample fields (per rig kind) for the next window, as a run starts."""
+        """Keep the Sample fields (per rig kind) and the run record (operator, note, tags)
+        for the next run and window, as a run starts."""
         store = settings()
         save_texts(store, self.protocol.sample_form.all_texts())
+        save_info(store, self.protocol.info_form.texts())
         store.sync()
 
     def remember_protocol(self, path: Path) -> None:
@@ -681,7 +719,7 @@ class MainWindow(QMainWindow):
             return
         self.remember_sample()
         try:
-            path = self.desk.start_run(spec)
+            path = self.desk.start_run(spec, self.protocol.info_form.info)
         except Refused as exc:  # nothing moved, nothing made (ADR 0330)
             self.refuse_run(str(exc), "made")
             return
@@ -690,6 +728,41 @@ class MainWindow(QMainWindow):
             self.message("Cannot start the run", str(exc))
             return
         self.log.add(f"run of {spec.name!r} started; recording to {path}")
+
+    def start_queued(self, procedure: Procedure, info: RunInfo) -> str:
+        """The queue's run, started as Run starts one (the same desk and run host); '' or
+        the one line why it did not start."""
+        if self.desk.running:
+            return "a run is already going"
+        try:
+            path = self.desk.start_run(procedure, info)
+        except Refused as exc:  # nothing moved, nothing made (ADR 0330)
+            self.refuse_run(str(exc), "made")
+            return str(exc)
+        except (GelrigError, OSError) as exc:
+            self.log.add(f"cannot start the queued run: {exc}", "error")
+            return str(exc)
+        limits = self.desk.spec.limits if self.desk.spec is not None else None
+        if isinstance(procedure, ProtocolSpec) and limits is not None:  # progress and ETA
+            self.protocol.run_plan = dry_run(procedure, limits)
+        self.log.add(f"queued run of {procedure.name!r} started; recording to {path}")
+        return ""
+
+    def _queue_item(self) -> QueueItem | str:
+        """The Protocol tab's file or script as a queue item (with its script parameters,
+        the Sample fields and the run record), or why it cannot be queued."""
+        panel = self.protocol
+        if panel.path is None:
+            return "open a protocol file or script first: the queue runs files"
+        if panel.modified:
+            return "save the protocol first: the queue runs the file as saved"
+        if panel.errors or panel.info_form.info is None:
+            return "fix the fields first: " + "; ".join(panel.errors + panel.info_form.errors)
+        info = panel.info_form.info
+        params = {name: entry.text() for name, entry in panel.script_form.entries.items()
+                  if entry.text().strip()} if panel.is_script else {}
+        return QueueItem(str(panel.path), params, panel.sample_form.table(), info.operator,
+                         info.note, list(info.tags))
 
     def refuse_run(self, line: str, folder: str) -> None:
         """A run refused before anything moved: its one line in the log, the status bar and
@@ -736,7 +809,8 @@ class MainWindow(QMainWindow):
         self.report_button.setVisible(False)
         self.report_action.setEnabled(False)
         self.plot_tabs.setCurrentIndex(0)
-        self.left_tabs.setCurrentIndex(0)
+        if not self.queue_runner.active:  # a queue's runs: the Queue tab stays in view
+            self.left_tabs.setCurrentIndex(0)
         self.manual.set_enabled(False)
         self.instruments.set_connected(True, busy=True)
         self.protocol.set_state(RunState.RUNNING)
@@ -942,6 +1016,7 @@ class MainWindow(QMainWindow):
         if link is not None:  # once (a close may come twice)
             QGuiApplication.styleHints().colorSchemeChanged.disconnect(link)
         self._save_settings()
+        self.queue_runner.stop()  # a queued rehearsal abandoned: its item waits again
         self.protocol.cancel_rehearsal()
         logging.getLogger().removeHandler(self._log_handler)
         if self._file_log is not None:

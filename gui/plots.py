@@ -105,7 +105,8 @@ def _axis(plot: pg.PlotWidget, side: str, name: str, unit: str) -> None:
     axis.setStyle(maxTickLevel=0)  # grid lines at major ticks only: 3x cheaper to paint
 
 
-def _plot(title: str, x: tuple[str, str], y: tuple[str, str]) -> pg.PlotWidget:
+def make_plot(title: str, x: tuple[str, str], y: tuple[str, str]) -> pg.PlotWidget:
+    """A plot of ``y`` against ``x`` (each (name, SI unit)), shown in the lab's units."""
     plot = time_plot(title, x[0]) if x[1] == "s" else pg.PlotWidget(title=title)
     _axis(plot, "bottom", *x)
     _axis(plot, "left", *y)
@@ -247,8 +248,8 @@ class CompressionPlots(LivePlots):
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         f, t, z = ("force", "N"), ("time from the run's start", "s"), ("plate position", "m")
-        self.force_t = self._add(_plot("Force against time", t, f), 0, 0, ("t", "s"), f)
-        self.force_z = self._add(_plot("Force against plate position", z, f), 0, 1,
+        self.force_t = self._add(make_plot("Force against time", t, f), 0, 0, ("t", "s"), f)
+        self.force_z = self._add(make_plot("Force against plate position", z, f), 0, 1,
                                  ("position", "m"), f)
         self.grid.addWidget(self.legend, 1, 0, 1, 2)
         self.grid.addWidget(self.readout, 2, 0, 1, 2)
@@ -340,14 +341,14 @@ class ShearPlots(LivePlots):
         super().__init__(parent)
         theta, force = ("arc travel theta", "m"), ("force", "N")
         time_axis = ("time from the run's start", "s")
-        self.f_h = self._add(_plot("F_h against theta (per pass)", theta, ("F_h", "N")), 1, 0,
+        self.f_h = self._add(make_plot("F_h against theta (per pass)", theta, ("F_h", "N")), 1, 0,
                              ("theta", "m"), ("F_h", "N"))
-        self.f_v = self._add(_plot("F_v against theta (per pass)", theta, ("F_v", "N")), 1, 1,
+        self.f_v = self._add(make_plot("F_v against theta (per pass)", theta, ("F_v", "N")), 1, 1,
                              ("theta", "m"), ("F_v", "N"))
-        self.torque_t = self._add(_plot("Torque against time", time_axis,
+        self.torque_t = self._add(make_plot("Torque against time", time_axis,
                                         ("torque", "N*m")), 2, 0, ("t", "s"),
                                   ("torque", "N*m"))
-        self.normal_t = self._add(_plot("Normal force against time", time_axis, force), 2, 1,
+        self.normal_t = self._add(make_plot("Normal force against time", time_axis, force), 2, 1,
                                   ("t", "s"), ("normal force", "N"))
         self.f_h.getPlotItem().setTitle("F_h = s M / L against theta (per pass)")
         top = QHBoxLayout()
@@ -525,7 +526,7 @@ class IdlePlots(QWidget):
         self.t.clear()
         self._t0 = None
         for row, (key, title, unit) in enumerate(IDLE_SERIES.get(kind, ())):
-            plot = _plot(f"{title[0].upper()}{title[1:]} (live, manual control)",
+            plot = make_plot(f"{title[0].upper()}{title[1:]} (live, manual control)",
                          ("time", "s"), (title, unit))
             self.grid.addWidget(plot, row, 0)
             self.plots[key] = plot

@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 
 from gelrig.gui import dialogs
 from gelrig.gui.protocol_form import ProtocolForm
+from gelrig.gui.run_info_form import RunInfoForm
 from gelrig.gui.sample_form import SampleForm
 from gelrig.gui.script_form import ScriptForm
 from gelrig.gui.tomlout import dumps
@@ -147,6 +148,10 @@ class ProtocolPanel(QGroupBox):
         self.sample_form = SampleForm()
         self.sample_form.changed.connect(self._sample_changed)
         layout.addWidget(self.sample_form)
+        #: who runs it and why (operator, note, tags): recorded in run.json
+        self.info_form = RunInfoForm()
+        self.info_form.changed.connect(self._update)
+        layout.addWidget(self.info_form)
         buttons = QHBoxLayout()
         self.run_button = QPushButton("Run")
         self.run_button.setToolTip("run the protocol on the connected rig, recording to a new "
@@ -181,6 +186,8 @@ class ProtocolPanel(QGroupBox):
         self.state = RunState.IDLE
         self.pause_requested = False
         self.plan: PlanSummary | None = None
+        #: the plan of a run not started from the form (a queued one): its progress and ETA
+        self.run_plan: PlanSummary | None = None
         self.rehearse_fn: Rehearse | None = None
         self.rehearsal: RehearsalReport | None = None
         self.rehearsal_error = ""
@@ -340,6 +347,8 @@ class ProtocolPanel(QGroupBox):
             self.cancel_rehearsal()
         if state != RunState.RUNNING:
             self.pause_requested = False
+        if state.finished:
+            self.run_plan = None
         if state == RunState.PAUSED:
             self.status.setText("paused at a checkpoint (nothing moves); Resume or Abort")
         elif state.finished:
@@ -377,9 +386,10 @@ class ProtocolPanel(QGroupBox):
         self._update()
 
     def show_progress(self, progress: Progress, step_name: str = "") -> None:
-        if self.plan is None:
+        plan = self.run_plan or self.plan
+        if plan is None:
             return
-        fraction, left = eta(self.plan, progress)
+        fraction, left = eta(plan, progress)
         self.progress.setValue(round(1000 * min(max(fraction, 0.0), 1.0)))
         if self.real_time or self.pace == 1.0:  # lab time is wall time
             wall = ""
@@ -388,7 +398,7 @@ class ProtocolPanel(QGroupBox):
         else:
             wall = f" (≈ {lab_time(left / self.pace)} at {self.pace:g}x)"
         # the run's step index (as in run.json, the step files, the log and the plots)
-        last = len(self.plan.durations) - 1
+        last = len(plan.durations) - 1
         what = f"step {progress.index}" + (f" {step_name}" if step_name else "")
         what += f" (steps 0–{last})"
         if progress.message:
@@ -435,6 +445,7 @@ class ProtocolPanel(QGroupBox):
         self.open_button.setEnabled(not self.active)
         self.forms.setEnabled(not self.active)
         self.sample_form.setEnabled(not self.active)
+        self.info_form.setEnabled(not self.active)
         if not self.active and self.refusal and self.state == RunState.IDLE:
             self.status.setText(f"a run is refused: {self.refusal}")
         elif not self.active and self.why_not and self.state == RunState.IDLE:
@@ -445,6 +456,8 @@ class ProtocolPanel(QGroupBox):
     def _why_not(self, spec: Procedure | None) -> str:
         if self.active:
             return "a run is going"
+        if self.info_form.errors:
+            return f"fix the run record: {self.info_form.errors[0]}"
         if spec is None and self.refusal:  # Run says it is refused (the CLI's line)
             return "" if self.connected else "connect the rig"
         if spec is None:

@@ -29,14 +29,21 @@ from gelrig.protocols.rigfile import default_rig
 from gelrig.protocols.spec import paper_protocol
 
 
-def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str = "8") -> None:
-    app = QApplication(sys.argv[:1])
+def pumping(app: QApplication) -> Callable[[Callable[[], bool], float], None]:
+    """``pump(done, timeout)``: run ``app``'s events until ``done()`` or ``timeout`` s."""
 
     def pump(done: Callable[[], bool], timeout: float) -> None:
         end = time.monotonic() + timeout
         while not done() and time.monotonic() < end:
             app.processEvents()
             time.sleep(0.01)
+
+    return pump
+
+
+def main(out: str, kind: str = "compression", mode: str = "idle", seconds: str = "8") -> None:
+    app = QApplication(sys.argv[:1])
+    pump = pumping(app)
 
     with tempfile.TemporaryDirectory() as runs:
         os.environ["GELRIG_SETTINGS"] = str(Path(runs) / "gui-settings.ini")  # not the user's

@@ -58,7 +58,7 @@ def test_menus_shortcuts_and_tooltips(qtbot, open_window):
     assert shortcuts["Home the stage"] == "Ctrl+H"
     assert "STOP all motion (Esc)" in shortcuts
     assert [a.shortcut().toString() for a in window.tab_actions] == [
-        f"Ctrl+{i}" for i in range(1, 7)]
+        f"Ctrl+{i}" for i in range(1, 9)]
     window.tab_actions[2].trigger()
     assert window.left_tabs.currentIndex() == 2
     window.tab_actions[4].trigger()
