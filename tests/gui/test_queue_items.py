@@ -1,4 +1,4 @@
-"""Queue items without a window (ADR 0380): parameters named as a campaign names them, sweep
+"""Queue items without a window (ADR 0382): parameters named as a campaign names them, sweep
 values, the queue file written and read back, an unreadable one set aside, and the states
 a window that went away left behind."""
 
