@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import siegelslopes
 
 FloatArray = NDArray[np.float64]
 
@@ -97,6 +96,7 @@ class SampleClock:
                 off = np.array([v[1] for v in full])
                 # repeated medians: a bin whose earliest arrival was late (no read waited in
                 # it) does not tilt the line
+                from scipy.stats import siegelslopes  # lazy: scipy.stats costs a start-up
                 slope = float(siegelslopes(off, idx).slope)
                 limit = MAX_DRIFT_PPM * 1e-6 / self.rate
                 self._slope = min(max(slope, -limit), limit)

@@ -28,10 +28,10 @@ from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
 from gelrig.instrument.core.arrays import FloatArray
 from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.iir import first_order
 from gelrig.instrument.physics.material import Material as Material  # re-exported
 from gelrig.instrument.physics.material import RelaxationTerm as RelaxationTerm
 
@@ -82,15 +82,14 @@ def _uniform_run(
 ) -> FloatArray:
     """``scale * h`` over samples sharing one step ``r = dt/tau``, as a linear filter on x.
 
-    ``h[k] = E h[k-1] + w (x[k] - x[k-1])`` is ``lfilter([w, -w], [1, -E], x)`` with the
-    state ``zi = E h_prev - w x_prev`` carrying the history in; ``scale`` (e.g. K G_i) is
-    folded into the coefficients, which saves a pass over the data.
+    ``h[k] = E h[k-1] + w (x[k] - x[k-1])`` is ``lfilter([w, -w], [1, -E], x)`` (run by
+    :func:`first_order`) with the state ``zi = E h_prev - w x_prev`` carrying the history in;
+    ``scale`` (e.g. K G_i) is folded into the coefficients, which saves a pass over the data.
     """
     e = math.exp(-r)
     w = -math.expm1(-r) / r if r > 0 else 1.0
     sw = scale * w
-    out, _ = lfilter((sw, -sw), (1.0, -e), x, zi=(scale * (e * h_prev - w * x_prev),))
-    return cast(FloatArray, out)
+    return first_order(sw, -sw, -e, x, scale * (e * h_prev - w * x_prev))
 
 
 def _diff_from(a: FloatArray, before: float) -> FloatArray:
