@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from gelrig.instrument.core.scipy_ext import siegel_slope
+
 FloatArray = NDArray[np.float64]
 
 #: Seconds of samples per bin of the arrivals' lower envelope.
@@ -96,8 +98,7 @@ class SampleClock:
                 off = np.array([v[1] for v in full])
                 # repeated medians: a bin whose earliest arrival was late (no read waited in
                 # it) does not tilt the line
-                from scipy.stats import siegelslopes  # lazy: scipy.stats costs a start-up
-                slope = float(siegelslopes(off, idx).slope)
+                slope = siegel_slope(off, idx)
                 limit = MAX_DRIFT_PPM * 1e-6 / self.rate
                 self._slope = min(max(slope, -limit), limit)
 

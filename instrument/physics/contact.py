@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gelrig.instrument.core.arrays import FloatArray
 from gelrig.instrument.core.errors import ConfigError
-from gelrig.instrument.core.iir import first_order
+from gelrig.instrument.core.scipy_ext import first_order
 from gelrig.instrument.physics.material import Material as Material  # re-exported
 from gelrig.instrument.physics.material import RelaxationTerm as RelaxationTerm
 

@@ -14,7 +14,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from gelrig.instrument.contracts.loadcell import LoadCellChain
-from gelrig.instrument.core.iir import first_order
+from gelrig.instrument.core.scipy_ext import first_order
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.instrument.physics.plate_contact import PlateSphereContact
 from gelrig.simulators.usb6001.config import DEFAULT_NOISE_RMS
