@@ -39,12 +39,14 @@ def test_it_imports_neither_scipy_signal_nor_scipy_stats() -> None:
             "print(sorted(m for m in sys.modules\n"
             "             if m.startswith(('scipy.signal', 'scipy.stats'))))\n"
             "from scipy.signal import lfilter\n"  # the package still imports afterwards
-            "print(lfilter([1.0], [1.0, -0.5], np.ones(3)).tolist())")
+            "print(lfilter([1.0], [1.0, -0.5], np.ones(3)).tolist())\n"
+            "from scipy.stats import siegelslopes\n"
+            "print(float(siegelslopes([0.0, 2.0, 4.0]).slope))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, timeout=60)
     # only the extension itself is loaded, not the package around it
     assert out.stdout.splitlines() == ["['scipy.signal._sigtools', 'scipy.stats._stats_pythran']",
-                                       "[1.0, 1.5, 1.75]"]
+                                       "[1.0, 1.5, 1.75]", "2.0"]
 
 
 @pytest.mark.parametrize("n", [2, 3, 40, 257])
