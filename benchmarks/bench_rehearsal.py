@@ -8,7 +8,9 @@ as a run, counting instead of recording. Prints the median wall and CPU time, th
 ratio, and the ratio to a baseline measured in the same run: the contact model alone computing
 the same experiment (as in bench_protocols.py). ``--with-run`` also times a full recorded
 virtual run of each (the drivers over their served transports, HDF5 on disk), which is what a
-rehearsal saves. Targets: compression < 2 s, shear < 5 s.
+rehearsal saves. Targets: compression < 2 s, shear < 5 s. Then one more rehearsal under
+tracemalloc: its peak allocation against the bytes of the columns it counts (a rehearsal
+counts samples, it keeps none; target < 150 MB).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import argparse
 import statistics
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 from _timing import median_time
@@ -40,6 +43,22 @@ def rehearsal(kind: str) -> tuple[float, float, float]:
     if not report.ok:
         raise SystemExit(f"{kind} rehearsal failed: {report.failure()}")
     return time.perf_counter() - t0, time.process_time() - c0, report.total
+
+
+def peak_memory(kind: str) -> tuple[float, int]:
+    """(peak bytes the rehearsal allocated above what it started with, bytes of the columns
+    a run would record): tracemalloc, which numpy's arrays report to."""
+    spec, protocol = load_rig(default_rig(kind)), load_protocol(paper_protocol(kind))
+    twin = build_twin(spec)
+    try:
+        tracemalloc.start()
+        base = tracemalloc.get_traced_memory()[0]
+        report = rehearse(twin, protocol)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+        twin.close()
+    return peak, report.bytes
 
 
 def main() -> None:
@@ -67,6 +86,10 @@ def main() -> None:
                                         for i in range(args.repeats))
             line += f"; full recorded run {run:.2f} s ({run / wall:.1f}x the rehearsal)"
         print(line, flush=True)
+        peak, recorded = peak_memory(kind)
+        print(f"paper {kind} rehearsal: peak memory {peak / 1e6:.1f} MB allocated (tracemalloc) "
+              f"for {recorded / 1e6:.1f} MB of columns counted, ratio {peak / recorded:.3f}; "
+              f"target < 150 MB", flush=True)
 
 
 if __name__ == "__main__":

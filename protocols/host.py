@@ -37,23 +37,24 @@ import time
 import traceback
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gelrig.instrument.core.catalog import CATALOG_NAME, OPEN_STATUSES, index_run
 from gelrig.instrument.core.clock import Clock, skip_to
 from gelrig.instrument.core.errors import ConfigError, GelrigError
 from gelrig.instrument.core.memory import release_freed_memory
-from gelrig.instrument.core.store import RunDirectory, check_out_dir
 from gelrig.protocols.control import RunControl
 from gelrig.protocols.events import EventBus, RunState
 from gelrig.protocols.origin import stuck_site
 from gelrig.protocols.procedure import Procedure
-from gelrig.protocols.recorder import Recorder
 from gelrig.protocols.rig import Rig
 from gelrig.protocols.rigfile import RigSpec
 from gelrig.protocols.runinfo import RunInfo
 from gelrig.protocols.runner import Runner
 from gelrig.protocols.safestop import AxisState, SafeState, bounded
+
+if TYPE_CHECKING:  # the HDF5 store (h5py) is loaded when a run is made, not by a plan
+    from gelrig.instrument.core.store import RunDirectory
 
 log = logging.getLogger(__name__)
 
@@ -134,6 +135,7 @@ def create_run(procedure: Procedure, rig: RigSpec, clock_spec: str, out: Path,
     something else, is a ConfigError naming ``--out``), run.json's metadata written (``info``:
     operator, note, tags), and for a script run a copy of the script beside the data (what
     made it; what a resume falls back on when the file is gone)."""
+    from gelrig.instrument.core.store import RunDirectory, check_out_dir
     from gelrig.protocols.script import COPY_DIR, Script
 
     check_out_dir(out)
@@ -373,6 +375,8 @@ class RunHost:
             if self._lock:
                 stack.enter_context(self.directory.lock())
             stack.enter_context(run_logging(self.log_path))
+            from gelrig.protocols.recorder import Recorder  # with the HDF5 store: a run only
+
             stack.callback(self.bus.subscribe(Recorder(self.directory), critical=True))
             # indexed first: once run.json says "running" the front end takes over at once
             # (its Ctrl-C handling among the first things)

@@ -53,6 +53,8 @@ class FaultProxy:
         self._threads: list[threading.Thread] = []
         self._random = random.Random(seed)
         self.replies_seen = 0  # reply chunks that reached the proxy (relayed or not)
+        self.requests = bytearray()  # every byte relayed to the server, in order
+        self.replies = bytearray()  # every byte delivered to the driver, in order
         self._spawn(self._accept_loop)
 
     # ---- faults --------------------------------------------------------------------------
@@ -163,6 +165,7 @@ class FaultProxy:
             try:
                 if data:
                     dst.sendall(data)
+                    self.requests += data
             except OSError:
                 break
         _close(src)
@@ -180,6 +183,7 @@ class FaultProxy:
             try:
                 if data:
                     dst.sendall(data)
+                    self.replies += data
             except OSError:
                 break
 

@@ -16,6 +16,7 @@ from gelrig.drivers.mcr501.commands import (
     ERROR,
     ERROR_CODES,
     RECORD,
+    TERMINATION,
     TRIP_CODES,
     Command,
     split_key,
@@ -141,6 +142,43 @@ def decode_record_rows(lines: list[str]) -> list[float]:
 
 #: The field names of a ``:MEAS`` record, in table order.
 RECORD_FIELDS = tuple(f.name for f in RECORD.shape if not isinstance(RECORD.shape, str))
+
+if isinstance(RECORD.shape, str) or any(not f.fmt.endswith("f") for f in RECORD.shape):
+    raise AssertionError("every :MEAS field must be fixed-point for RECORD_MIN_LENGTH")
+#: The fewest characters of a well-formed ``:MEAS`` line (termination excluded): every field
+#: fixed-point, so none is shorter than zero written with its format. The transport may read
+#: that many bytes per record still due without reading past a reply.
+RECORD_MIN_LENGTH = len(RECORD.encode_row(*(0.0 for _ in RECORD_FIELDS)))
+_HEAD = f"{RECORD.key}[".encode("ascii")
+_WIDTHS = tuple(len(format(0.0, f.fmt)) for f in RECORD.shape)
+_DECIMALS = tuple(int(f.fmt.strip(".f")) for f in RECORD.shape)
+_TAIL = len("]") + len(TERMINATION)
+
+
+def record_rest(prefix: bytes) -> int:
+    """The fewest bytes (termination included) that can still complete a ``:MEAS`` line begun
+    with ``prefix``: a fixed-point field has exactly its format's decimals after the point,
+    and each field still to come at least its width at zero. 1 for what is not a prefix of a
+    record (the line then fails to decode)."""
+    if len(prefix) < len(_HEAD):
+        return RECORD_MIN_LENGTH + len(TERMINATION) - len(prefix)
+    if prefix.endswith(b"]"):
+        return len(TERMINATION)
+    if prefix.endswith(b"]\r"):
+        return 1
+    parts = prefix[len(_HEAD):].split(b";")
+    j = len(parts) - 1
+    if j >= len(_WIDTHS):
+        return 1
+    current = parts[j]
+    point = current.find(b".")
+    if point >= 0:
+        here = max(0, _DECIMALS[j] - (len(current) - point - 1))
+    else:
+        digits = current.lstrip(b"+-")
+        here = (0 if digits else 1) + 1 + _DECIMALS[j]
+    later = sum(1 + w for w in _WIDTHS[j + 1:])
+    return max(1, here + later + _TAIL)
 
 
 _STREAM_HEADER = COMMANDS["read_stream"]

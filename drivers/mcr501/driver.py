@@ -24,10 +24,12 @@ import numpy as np
 
 from gelrig.drivers.mcr501.codec import (
     RECORD_FIELDS,
+    RECORD_MIN_LENGTH,
     Values,
     decode_record_rows,
     decode_reply,
     decode_stream_header,
+    record_rest,
 )
 from gelrig.drivers.mcr501.commands import BAUD_RATE, COMMANDS, STATUS_FLAGS, split_key
 from gelrig.drivers.mcr501.transport import LineTransport, VisaTransport
@@ -467,7 +469,8 @@ class MCR501:
             self._send(_STREAM_REQUEST)
             count, remaining = decode_stream_header(transport.read_line())
             if count:
-                batch = decode_record_rows(transport.read_lines(count))
+                batch = decode_record_rows(
+                    transport.read_lines(count, RECORD_MIN_LENGTH, record_rest))
                 self._check_continuity(batch[0], batch[-len(RECORD_FIELDS)])
                 values += batch
             if remaining == 0:

@@ -170,7 +170,7 @@ def rehearse_on_twin(protocol: Procedure, rig: RigSpec) -> tuple[RehearsalReport
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """The static plan as a header, then the rehearsal on the rig's twin; 2 if it fails."""
-    from gelrig.instrument.core.store import check_path
+    from gelrig.instrument.core.paths import check_path
 
     out = Path(args.out) if args.out else Path("runs")
     check_path(out)
@@ -202,7 +202,7 @@ def disk_warning(out: Path, data_bytes: int) -> str:
     free space than the run would write; '' when it has room."""
     import shutil
 
-    from gelrig.instrument.core.store import check_path, existing_parent
+    from gelrig.instrument.core.paths import check_path, existing_parent
     from gelrig.protocols.rehearsal import human_bytes
 
     check_path(out)

@@ -20,9 +20,19 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
-from scipy.stats import norm
+from scipy.special import ndtr
 
 from gelrig.instrument.physics.contact import FloatArray
+
+#: sqrt(2 pi), as scipy.stats computes it for the normal density.
+_SQRT_2PI = np.sqrt(2 * np.pi)
+
+
+def _norm_pdf(z: FloatArray) -> FloatArray:
+    """The standard normal density, the same operations as ``scipy.stats.norm.pdf`` (whose
+    package import costs a start-up; ``ndtr`` is its cdf)."""
+    return np.asarray(np.exp(-z**2 / 2.0) / _SQRT_2PI, dtype=float)
+
 
 #: Points of the tabulated functions over one code step.
 _TABLE = 1024
@@ -80,12 +90,12 @@ class DitheredQuantiser:
         u = np.linspace(0.0, 1.0, _TABLE + 1)  # where x sits above a code, in steps
         reach = math.ceil(8.0 * s) + 1
         j = np.arange(-reach, reach + 2)[:, None]  # codes relative to the one below x
-        p = norm.cdf((j + 0.5 - u) / s) - norm.cdf((j - 0.5 - u) / s)
+        p = ndtr((j + 0.5 - u) / s) - ndtr((j - 0.5 - u) / s)
         self._u = u
         self._bias = q * (np.sum(j * p, axis=0) - u)
         self._moment = q * q * np.sum((j - u) ** 2 * p, axis=0)
         # d E[Q]/dx: the density of code edges under the noise
-        self._slope = np.sum(norm.pdf((j - 0.5 - u) / s), axis=0) / s - 1.0
+        self._slope = np.sum(_norm_pdf((j - 0.5 - u) / s), axis=0) / s - 1.0
 
     def _where(self, x: ArrayLike) -> FloatArray:
         return np.mod((np.asarray(x, dtype=float) - self.lattice.phase) / self.lattice.step, 1.0)
@@ -146,7 +156,7 @@ def baseline_level(values: ArrayLike, lattice: Lattice, sigma: float) -> tuple[f
     upper, lower = (codes + 0.5) * q + phase, (codes - 0.5) * q + phase
 
     def nll(level: float) -> float:
-        p = norm.cdf((upper - level) / s) - norm.cdf((lower - level) / s)
+        p = ndtr((upper - level) / s) - ndtr((lower - level) / s)
         return -float(np.dot(counts, np.log(np.maximum(p, 1e-300))))
 
     centre = float(np.mean(v))

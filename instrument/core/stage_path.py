@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from gelrig.instrument.core.motion import Phase, Trajectory, plan_move, plan_stop
 from gelrig.instrument.core.timebase import TimeMapping
@@ -263,6 +262,7 @@ class StagePath:
             lo, hi = seg.lo, seg.hi
             if f(lo) * f(hi) > 0:
                 return  # the report is not where the stage could have stopped: checked later
+            from scipy.optimize import brentq  # lazy: scipy.optimize costs a start-up
             t = brentq(f, lo, hi, xtol=1e-7) if f(lo) != f(hi) else seg.t
             seg.lo = seg.hi = seg.t = float(t)
             seg.refined = True
@@ -300,6 +300,7 @@ class StagePath:
         if not margin < frac < 1.0 - margin:
             return None
         profile = plan_move(0.0, seg.x0, 0.0, seg.target, seg.speed, seg.accel)
+        from scipy.optimize import brentq  # lazy: scipy.optimize costs a start-up
         return float(brentq(lambda s: _at(profile, s) - x, 0.0, profile[-1].t0, xtol=1e-7))
 
     def _disagreement(self, report: PathReport) -> float:

@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import siegelslopes
+
+from gelrig.instrument.core.scipy_ext import siegel_slope
 
 FloatArray = NDArray[np.float64]
 
@@ -97,7 +98,7 @@ class SampleClock:
                 off = np.array([v[1] for v in full])
                 # repeated medians: a bin whose earliest arrival was late (no read waited in
                 # it) does not tilt the line
-                slope = float(siegelslopes(off, idx).slope)
+                slope = siegel_slope(off, idx)
                 limit = MAX_DRIFT_PPM * 1e-6 / self.rate
                 self._slope = min(max(slope, -limit), limit)
 

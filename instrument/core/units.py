@@ -6,17 +6,39 @@ pint does the parsing and the dimension check; a bare number is taken as SI alre
 from __future__ import annotations
 
 import math
+import sys
 from functools import lru_cache
 from typing import Any
 
 from gelrig.instrument.core.errors import ConfigError
 
 
+def _import_pint() -> Any:
+    """pint, without the dask that ``pint.compat`` imports when it is installed (~0.2 s of a
+    start-up, for pint's dask-array support, which gelrig does not use) unless dask is
+    already loaded (a campaign)."""
+    if "pint" in sys.modules or "dask" in sys.modules:
+        import pint
+
+        return pint
+    sys.modules["dask"] = None  # type: ignore[assignment]  # find_spec("dask") -> None
+    try:
+        import pint
+    finally:
+        if sys.modules.get("dask", 0) is None:
+            del sys.modules["dask"]
+    return pint
+
+
 @lru_cache(maxsize=1)
 def _registry() -> Any:
-    import pint
-
-    return pint.UnitRegistry()
+    """The one unit registry, its parsed definitions cached on disk by pint (~0.02 s instead
+    of ~0.2 s at a start-up; the same definitions, so the same conversions)."""
+    pint = _import_pint()
+    try:
+        return pint.UnitRegistry(cache_folder=":auto:")
+    except Exception:  # no writable cache folder: parse the definitions
+        return pint.UnitRegistry()
 
 
 def to_si(value: str | float | int, unit: str, field: str, source: str | None = None) -> float:
@@ -40,9 +62,8 @@ def to_si(value: str | float | int, unit: str, field: str, source: str | None = 
 
 
 def _parse_with_units(text: str, unit: str, field: str, source: str | None) -> float:
-    import pint
-
     ureg = _registry()
+    pint = sys.modules["pint"]
     try:
         q = ureg.Quantity(text)
         return float(q.to(unit).magnitude)

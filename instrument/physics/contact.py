@@ -28,10 +28,10 @@ from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
 from gelrig.instrument.core.arrays import FloatArray
 from gelrig.instrument.core.errors import ConfigError
+from gelrig.instrument.core.scipy_ext import first_order
 from gelrig.instrument.physics.material import Material as Material  # re-exported
 from gelrig.instrument.physics.material import RelaxationTerm as RelaxationTerm
 
@@ -82,15 +82,14 @@ def _uniform_run(
 ) -> FloatArray:
     """``scale * h`` over samples sharing one step ``r = dt/tau``, as a linear filter on x.
 
-    ``h[k] = E h[k-1] + w (x[k] - x[k-1])`` is ``lfilter([w, -w], [1, -E], x)`` with the
-    state ``zi = E h_prev - w x_prev`` carrying the history in; ``scale`` (e.g. K G_i) is
-    folded into the coefficients, which saves a pass over the data.
+    ``h[k] = E h[k-1] + w (x[k] - x[k-1])`` is ``lfilter([w, -w], [1, -E], x)`` (run by
+    :func:`first_order`) with the state ``zi = E h_prev - w x_prev`` carrying the history in;
+    ``scale`` (e.g. K G_i) is folded into the coefficients, which saves a pass over the data.
     """
     e = math.exp(-r)
     w = -math.expm1(-r) / r if r > 0 else 1.0
     sw = scale * w
-    out, _ = lfilter([sw, -sw], [1.0, -e], x, zi=[scale * (e * h_prev - w * x_prev)])
-    return np.asarray(out, dtype=float)
+    return first_order(sw, -sw, -e, x, scale * (e * h_prev - w * x_prev))
 
 
 def _diff_from(a: FloatArray, before: float) -> FloatArray:
@@ -173,6 +172,19 @@ def _contact_runs(inside: NDArray[np.bool_]) -> list[tuple[int, int]]:
     bounds = [0, *edges.tolist(), inside.size]
     first = bool(inside[0])
     return [(a, b) for k, (a, b) in enumerate(itertools.pairwise(bounds)) if (k % 2 == 0) == first]
+
+
+def _runs_of_contact(x: FloatArray) -> list[tuple[int, int]]:
+    """(start, stop) of each run of x > 0 in ``x >= 0``, from the positions of its zeros (few
+    in a record: one pass when in contact throughout)."""
+    if x.all():
+        return [(0, x.size)]
+    zeros = np.flatnonzero(x == 0.0)
+    if zeros.size > x.size // 64:
+        return _contact_runs(x > 0)
+    bounds = np.concatenate(([-1], zeros, [x.size]))
+    gap = np.flatnonzero(bounds[1:] - bounds[:-1] > 1)
+    return list(zip((bounds[gap] + 1).tolist(), bounds[gap + 1].tolist(), strict=True))
 
 
 def hereditary_contacts(
@@ -280,39 +292,55 @@ class NormalContact:
         """
         if not dt > 0:
             raise ValueError(f"dt must be > 0 s, got {dt}")
-        x = hertz_power(delta)
+        # hertz_power with its square root's buffer reused for the output (one fewer array
+        # to allocate and fault in: this is the simulators' per-read path).
+        x = np.maximum(np.asarray(delta, dtype=float), 0.0)
         n = x.size
         if n == 0:
             return np.empty(0)
+        total = np.sqrt(x)
+        np.multiply(x, total, out=x)
         fresh = self.t_last is None
         t_end = (0.0 if fresh else float(self.t_last or 0.0)) + dt * (n - 1 if fresh else n)
-        if not self.carry_history and not bool(x.all()):  # separations: per-contact runs
-            steps = np.full(n, dt)
-            if fresh:
-                steps[0] = 0.0
-            elastic, hat = self._advance(steps, x, t_end)
-            total_ = elastic + hat
-            return np.maximum(total_, 0.0, out=total_)
-        total = x * (self.k * self.material.g_e)
+        # Each run of overlap > 0 is its own uniform filter pass: the first run continues the
+        # state (or loads at once on a fresh contact), later runs start from the apart sample
+        # before them with no history, exactly as the per-contact path of :meth:`_advance`.
+        runs = [(0, n)] if self.carry_history else _runs_of_contact(x)
+        np.multiply(x, self.k * self.material.g_e, out=total)
         for i in range(self.h.size):
             tau, g = float(self._taus[i]), float(self._gs[i])
             scale = self.k * g if g > 0 else 1.0
-            h_prev, x_prev = float(self.h[i]), self.x_last
-            if math.isinf(tau):
-                hi = scale * (h_prev + (x - x_prev))
-            elif fresh:  # the first sample loads at once (step 0), the rest are uniform
-                first = h_prev + x[0] - x_prev
-                hi = np.empty(n)
-                hi[0] = scale * first
-                hi[1:] = _uniform_run(x[1:], float(x[0]), dt / tau, first, scale)
-            else:
-                hi = _uniform_run(x, x_prev, dt / tau, h_prev, scale)
-            self.h[i] = hi[-1] / scale
-            if g > 0:
-                total += hi
+            for a, b in runs:
+                h_prev, x_prev = (float(self.h[i]), self.x_last) if a == 0 else (0.0, 0.0)
+                if tau < math.inf and not (fresh and a == 0):  # the common case, inline
+                    hi = _uniform_run(x[a:b], x_prev, dt / tau, h_prev, scale)
+                else:
+                    hi = self._uniform_term(x[a:b], x_prev, h_prev, dt / tau, scale, fresh)
+                self.h[i] = hi[-1] / scale
+                if g > 0:
+                    total[a:b] += hi
+            if not self.carry_history and x[-1] == 0.0:
+                self.h[i] = 0.0
         self.t_last = t_end
         self.x_last = float(x[-1])
         return np.maximum(total, 0.0, out=total)
+
+    @staticmethod
+    def _uniform_term(x: FloatArray, x_prev: float, h_prev: float, r: float, scale: float,
+                      load_at_once: bool) -> FloatArray:
+        """``scale * h`` of one term over samples every ``r = dt/tau``; ``load_at_once``: the
+        first sample is a jump (step 0) from ``x_prev``, as a fresh contact's first sample."""
+        if r == 0.0:  # tau = inf: no decay
+            return scale * (h_prev + (x - x_prev))
+        if not load_at_once:
+            return _uniform_run(x, x_prev, r, h_prev, scale)
+        if x.size == 1:
+            return np.array([scale * (h_prev + x[0] - x_prev)])
+        first = h_prev + x[0] - x_prev
+        hi = np.empty(x.size)
+        hi[0] = scale * first
+        hi[1:] = _uniform_run(x[1:], float(x[0]), r, first, scale)
+        return hi
 
     def reset(self) -> None:
         """Discard the hereditary state: the next sample starts a fresh contact."""

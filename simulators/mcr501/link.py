@@ -7,7 +7,7 @@ protocol test or a benchmark can run the real driver code without a TCP round tr
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from gelrig.instrument.core.errors import Disconnected, InstrumentTimeout
@@ -34,7 +34,8 @@ class DirectLink:
             raise InstrumentTimeout("MCR 501 direct link: no reply pending")
         return self._pending.popleft()
 
-    def read_lines(self, n: int) -> list[str]:
+    def read_lines(self, n: int, min_length: int = 1,
+                   rest: Callable[[bytes], int] | None = None) -> list[str]:
         """``n`` lines, as ``read_line`` n times (all that is pending at once when it is n)."""
         pending = self._pending
         if len(pending) == n and not self._closed:

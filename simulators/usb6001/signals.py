@@ -12,9 +12,9 @@ import math
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from scipy.signal import lfilter
 
 from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.core.scipy_ext import first_order
 from gelrig.instrument.physics.contact import FloatArray
 from gelrig.instrument.physics.plate_contact import PlateSphereContact
 from gelrig.simulators.usb6001.config import DEFAULT_NOISE_RMS
@@ -102,7 +102,7 @@ class LoadCellSignal:
         a = math.exp(-2.0 * math.pi * self.chain.bandwidth * dt)
         if self._state is None:
             self._state = float(v[0])
-        v, _ = lfilter([1.0 - a], [1.0, -a], v, zi=[a * self._state])
+        v = first_order(1.0 - a, 0.0, -a, v, a * self._state)
         self._state = float(v[-1])
         if self.noise_rms > 0:
             v += self.noise_rms * self._rng.standard_normal(v.size)

@@ -68,6 +68,7 @@ def test_series_holds_at_the_asked_strains_with_rests_between(series):
         assert results["held_s"] == pytest.approx(600.0, abs=0.1)
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_series_fits_the_simulators_relaxation_time(series):
     (term,) = TRUTH.material.relax
     for hold in by_kind(series, "ramp_hold"):
@@ -78,6 +79,7 @@ def test_series_fits_the_simulators_relaxation_time(series):
         assert fit["G_e"] == pytest.approx(TRUTH.material.g_e, rel=0.05)
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_series_compares_the_fits_across_strains_in_its_log(series):
     log = (series.path / "gelrig.log").read_text()
     lines = [line for line in log.splitlines() if "strain " in line and "G_e = " in line]
@@ -90,6 +92,7 @@ def test_series_compares_the_fits_across_strains_in_its_log(series):
         assert abs(tau - term.tau) < 3 * err, line
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_series_rests_record_the_baseline_clear_of_the_sphere(series):
     touch = series.results("contact search")["first_touch_m"]
     rests = by_kind(series, "rest")
@@ -180,6 +183,7 @@ def test_creep_holds_the_force_and_the_plate_creeps_forward(creep_py):
     assert 0.5 * expected < history[-1][1] - history[0][1] < 2 * expected, expected
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_creep_recovers_at_rest_after_the_hold(creep_py):
     assert [s["kind"] for s in creep_py.steps] == ["compression_contact_search", "creep", "rest"]
     touch = creep_py.results("contact search")["first_touch_m"]

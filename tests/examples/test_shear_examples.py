@@ -57,6 +57,7 @@ def test_the_paper_shear_script_is_the_protocol_file(
         assert ours["samples"] == theirs["samples"] > 0, ours["name"]
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_the_paper_shear_script_records_the_same_samples(
         paper_runs: dict[str, gelrig.RunResult]) -> None:
     toml, script = (RunDirectory(paper_runs[n].path) for n in ("toml", "script"))

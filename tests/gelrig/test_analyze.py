@@ -84,6 +84,7 @@ def test_shear_report_recovers_the_hidden_truth(shear_report):
         assert all(np.diff(ratios) > 0), ratios
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_report_has_figures_tables_and_csv(shear_report):
     page = shear_report.report_path
     text = page.read_text()
@@ -102,6 +103,7 @@ def test_report_has_figures_tables_and_csv(shear_report):
     assert len(summary.splitlines()) <= 40 and "l_c/l_g" in summary and "G_e" in summary
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_cli_prints_the_summary(shear_run, tmp_path, capsys):
     assert main(["analyze", str(shear_run.path), "--out", str(tmp_path / "r"),
                  "--no-model-fit"]) == 0
@@ -128,6 +130,7 @@ def _copy(run, tmp_path, name="copy"):
     return RunDirectory(target)
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_missing_step_file_is_named(shear_run, tmp_path, capsys):
     copy = _copy(shear_run, tmp_path)
     (copy.path / "steps" / "00_ladder.h5").unlink()
@@ -164,6 +167,7 @@ def test_crash_mid_ladder_analyses_the_complete_passes(shear_run, tmp_path):
     assert "Incomplete data" in result.report_path.read_text()
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_step_never_started_is_reported(hold_run, tmp_path):
     copy = _copy(hold_run, tmp_path)
     meta = copy.read_metadata()
@@ -177,6 +181,7 @@ def test_step_never_started_is_reported(hold_run, tmp_path):
     assert 1 in result.hold_fits
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_truncated_hold_is_fitted_and_flagged(hold_run, tmp_path):
     copy = _copy(hold_run, tmp_path)
     path = copy.path / "steps" / "01_ramp_and_hold.h5"
@@ -198,6 +203,7 @@ def test_not_a_run_directory(tmp_path):
         analyze_run(tmp_path, tmp_path / "out")
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_the_ladder_shows_the_chord_per_pass_and_per_speed(shear_report):
     """Issue 14 item 4: the measured l_g beside the chord 2 psi0 at the set overlap (the
     ladder's touch gap), per (overlap, speed) and per pass, in the summary and the report."""

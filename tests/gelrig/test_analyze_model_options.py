@@ -63,6 +63,7 @@ def test_an_mdr_ladder_fitted_with_mdr_recovers_the_truth(mdr_fits):
     assert fit.rms_h < 1.5 * fit.noise_h and fit.rms_v < 1.5 * fit.noise_v
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_the_cutoff_model_fits_an_mdr_ladder_measurably_worse(mdr_fits):
     mdr, cutoff = only_fit(mdr_fits["mdr"]), only_fit(mdr_fits["cutoff"])
     assert cutoff.extra["unloading"] == "cutoff"
@@ -70,6 +71,7 @@ def test_the_cutoff_model_fits_an_mdr_ladder_measurably_worse(mdr_fits):
     assert cutoff.rms_v > 2.0 * mdr.rms_v
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_the_summary_and_the_report_name_the_unloading_model(mdr_fits):
     for model, result in mdr_fits.items():
         assert f"{model} unloading" in result.summary

@@ -5,6 +5,7 @@ moves."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -30,6 +31,16 @@ def test_move_plate_takes_unit_strings_and_si_numbers() -> None:
         assert where(rig, "position_m") == pytest.approx(1e-3, abs=1e-6)
 
 
+@pytest.fixture(scope="module")
+def rig_at_2_mm() -> Iterator[gelrig.RigSession]:
+    """One simulated compression rig, homed and at 2 mm, for every refused move (opening and
+    homing one per case cost 6-10 s each; a refused move leaves it where it was)."""
+    with gelrig.open_rig("compression") as rig:
+        rig.home()
+        rig.move_plate("1 mm/s", to="2 mm", confirm=True)
+        yield rig
+
+
 @pytest.mark.parametrize(("speed", "kwargs", "line"), [
     ("fast", {"to": "3 mm"},
      """move_plate speed = "fast": a number in m/s, or a string with a unit like '0.5 mm/s'"""),
@@ -40,15 +51,14 @@ def test_move_plate_takes_unit_strings_and_si_numbers() -> None:
     ("0.5 mm/s", {"by": [1]},
      """move_plate by = [1]: a number in m, or a string with a unit like '3 mm'"""),
 ])
-def test_a_bad_quantity_is_one_line_and_nothing_moves(speed: Any, kwargs: dict[str, Any],
-                                                       line: str) -> None:
-    with gelrig.open_rig("compression") as rig:
-        rig.home()
-        rig.move_plate("1 mm/s", to="2 mm", confirm=True)
-        with pytest.raises(gelrig.ConfigError) as raised:
-            rig.move_plate(speed, **kwargs)
-        assert str(raised.value) == line
-        assert where(rig, "position_m") == pytest.approx(2e-3, abs=1e-6)
+def test_a_bad_quantity_is_one_line_and_nothing_moves(
+        rig_at_2_mm: gelrig.RigSession, speed: Any, kwargs: dict[str, Any], line: str) -> None:
+    rig = rig_at_2_mm
+    assert where(rig, "position_m") == pytest.approx(2e-3, abs=1e-6)
+    with pytest.raises(gelrig.ConfigError) as raised:
+        rig.move_plate(speed, **kwargs)
+    assert str(raised.value) == line
+    assert where(rig, "position_m") == pytest.approx(2e-3, abs=1e-6)
 
 
 def test_set_gap_takes_a_unit_string() -> None:

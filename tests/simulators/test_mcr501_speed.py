@@ -296,7 +296,7 @@ def test_the_driver_block_equals_the_per_point_conversion() -> None:
     keep_moving(clock, drv, 3.3, drv.config.motion_bound)  # ~330 points: four #DATA batches
     sent: list[str] = []
     real = link.read_lines
-    link.read_lines = lambda n: sent.extend(real(n)) or sent[-n:]  # type: ignore[method-assign]
+    link.read_lines = lambda n, *bounds: sent.extend(real(n, *bounds)) or sent[-n:]  # type: ignore[method-assign]
     block = drv.read_stream()
     drv.close()
     assert isinstance(block, StreamBlock) and len(block) == len(sent) > 300

@@ -58,6 +58,7 @@ def test_fit_recovers_the_parameters(fitted):
     assert fit.n_passes == 12
 
 
+@pytest.mark.slow  # shares a module fixture (a recorded run) with slow tests
 def test_confidence_intervals_are_finite_and_bracket_the_values(fitted):
     names = [e.name for e in fitted.estimates]
     assert names == ["G_e", "G_1", "tau_1", "mu", "touch_gap", "lower_angle"]

@@ -125,3 +125,14 @@ def test_quiet_load_cell_intervals_are_honest_at_1_khz(noise: float) -> None:
 @pytest.mark.slow
 def test_quiet_load_cell_shell_two_terms_are_honest() -> None:
     _assert_honest(_coverage(SHELL, 0.05e-3, 100.0, 3000.0, 20, (1, 2)), 20)
+
+
+def test_the_normal_cdf_and_density_are_scipy_stats_to_the_bit() -> None:
+    """The quantiser's normal without the scipy.stats import (start-up, issue 31 item 3)."""
+    from scipy.stats import norm
+
+    from gelrig.instrument.analysis.quantiser import _norm_pdf, ndtr
+
+    z = np.concatenate((np.linspace(-40.0, 40.0, 100_001), [0.0, -0.0, np.inf, -np.inf]))
+    assert np.array_equal(ndtr(z), norm.cdf(z))
+    assert np.array_equal(_norm_pdf(z), norm.pdf(z))

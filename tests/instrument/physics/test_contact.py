@@ -1,5 +1,6 @@
 """The contact model against limits, closed forms and brute-force oracles (physics.md 1)."""
 
+import itertools
 import math
 
 import numpy as np
@@ -244,3 +245,28 @@ def test_time_going_backwards_is_refused():
         contact.step(0.5, 1e-4)
     with pytest.raises(ValueError, match="decrease"):
         contact.block(np.array([2.0, 1.5]), np.array([1e-4, 1e-4]))
+
+
+@pytest.mark.parametrize("terms", [0, 1, 2])
+@pytest.mark.parametrize("pattern", ["starts-apart", "separates", "apart-at-end", "in-contact"])
+def test_the_uniform_fast_path_equals_the_per_contact_path(terms, pattern):
+    """block_uniform (one filter pass per contact run) against block with the same times (the
+    exact per-contact recursion), whole and streamed in blocks that start and end apart."""
+    n, dt = 5000, 1e-3
+    t = np.arange(n) * dt
+    delta = {
+        "starts-apart": np.minimum(t * 2e-4, 1e-4),  # the paper's ramp-hold: overlap 0 first
+        "separates": 1e-4 * np.sin(t * 9.0),
+        "apart-at-end": 1e-4 * np.sin(t * 0.7),
+        "in-contact": 1e-4 * (1.1 + np.sin(t * 3.0)),
+    }[pattern]
+    material = Material.of(4e3, [(2e4, 0.3), (5e3, 0.02)][:terms])
+    exact = NormalContact(material, R).block(t, delta)
+    np.testing.assert_allclose(normal_force_uniform(delta, dt, material, R), exact,
+                               rtol=1e-12, atol=1e-12 * np.max(exact))
+    streamed = NormalContact(material, R)
+    cuts = [0, 1, 17, 700, 701, 2600, 4999, n]
+    parts = [streamed.block_uniform(delta[a:b], dt) for a, b in itertools.pairwise(cuts)]
+    np.testing.assert_allclose(np.concatenate(parts), exact, rtol=1e-12,
+                               atol=1e-12 * np.max(exact))
+    assert streamed.t_last == pytest.approx(t[-1], rel=1e-12)
