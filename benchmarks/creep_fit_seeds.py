@@ -4,7 +4,7 @@ material (2000 Pa / 60 s, as tests/gelrig/test_analyze_any_run.py), analysed; pe
 error of G_e, G_1, tau_1 and tau_c in units of its reported standard error, then how many
 95 % intervals cover the truth.
 
-Run: python benchmarks/creep_fit_seeds.py [--seeds 20] [--first 1]
+Run: python benchmarks/creep_fit_seeds.py [--seeds 20] [--first 1] [--noise "0.2 mN"]
 """
 
 from __future__ import annotations
@@ -31,10 +31,12 @@ def creep(run: gelrig.Run) -> None:
              period="1 s", gain=0.5, rate="100 Hz")
 
 
-def one(seed: int, folder: Path) -> dict[str, float]:
-    """(value - truth) / reported s.e. of each parameter for one seed."""
+def one(seed: int, folder: Path, noise: str = "0.2 mN") -> dict[str, float]:
+    """(value - truth) / reported s.e. of each parameter for one seed; ``noise`` the load
+    cell's (the rig's 0.2 mN by default)."""
     text = re.sub(r"(?m)^relax = .*$", f'relax = [["{G_1:g} Pa", "{TAU:g} s"]]',
                   default_rig("compression").read_text())
+    text = re.sub(r'(?m)^noise = .*$', f'noise = "{noise}"', text, count=1)
     rig = folder / f"rig{seed}.toml"
     rig.write_text(re.sub(r"(?m)^seed = .*$", f"seed = {seed}", text))
     with gelrig.open_rig(rig) as session:
@@ -50,11 +52,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first", type=int, default=1)
+    parser.add_argument("--noise", default="0.2 mN", help="the load cell's noise (rig: 0.2 mN)")
     args = parser.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(args.first, args.first + args.seeds):
-            z = one(seed, Path(tmp))
+            z = one(seed, Path(tmp), args.noise)
             rows.append(z)
             print(seed, " ".join(f"{k} {v:+.2f}" for k, v in z.items()), flush=True)
     for k in TRUTH:
