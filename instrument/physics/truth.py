@@ -180,8 +180,8 @@ class CompressionTruth(_Truth):
     def from_table(cls, table: Mapping[str, Any], source: str | None = None,
                    section: str | None = None, ignore: Sequence[str] = ()) -> Self:
         """As :meth:`_Truth.from_table`; ``direction`` checked as written, with the file."""
-        if isinstance(table, Mapping) and "direction" in table:
-            raw = table["direction"]
+        if isinstance(table, Mapping) and table.get("direction") is not None:
+            raw = table["direction"]  # None (as stored by to_table): not given
             where = Where(cls.section if section is None else section, source)
             if isinstance(raw, bool) or not isinstance(raw, int | float):
                 raise where.error("direction", raw, _DIRECTIONS)

@@ -204,3 +204,18 @@ def test_first_touch_on_a_ramp_as_long_as_tau_takes_the_materials_own_loading_la
     stderr = float(np.median([f.stderr for f in found]))
     assert abs(float(errors.mean())) < 3 * stderr / np.sqrt(errors.size)  # no bias
     assert 0.7 < float(errors.std(ddof=1)) / stderr < 1.3  # and an honest standard error
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_first_touch_after_millimetres_of_noisy_probing(seed):
+    """A contact search probing 6.2 mm at 0.3 mm/s and 100 Hz with a 0.5 mN load cell stops
+    at 5 mN: a few noise samples far before contact rise above 0.3 of the peak, which tilted
+    the fit's start line so that it found no touch (gelrig's rig at 0.5 mN, 2026-11-28)."""
+    touch = 6.2e-3
+    z = np.arange(0.0, 6.45e-3, 3e-6)
+    force = normal_force(z / 0.3e-3, np.maximum(z - touch, 0.0),
+                         Material.of(paper.PLATES.g_instant), R)
+    noisy = force + np.random.default_rng(seed).normal(0.0, 5e-4, z.size)
+    end = int(np.argmax(noisy > 5e-3))
+    found = estimate_first_touch(z[:end + 1], noisy[:end + 1])
+    assert abs(found.position - touch) < 4 * found.stderr + 1e-6, (found.position, found.stderr)
