@@ -192,6 +192,8 @@ class LoadCellBringup:
         rms = n.rms / s
         u = rms * float(np.hypot(1 / np.sqrt(2 * n.n), u_s / s))
         part = n.correlated
+        if part is not None and rms > 0:  # the white part is what the correlated leaves
+            u = float(np.hypot(u, (part.rms / s) ** 2 * part.u_rms / rms))
         self.s.found(f"force noise {rms * 1e3:.4f} mN rms white through the {how}; drift "
                      f"{n.drift / s * 1e6:.3g} uN/s; quantisation step {n.step / s * 1e3:.4f} mN; "
                      + (f"correlated part {part.rms / s * 1e3:.4f} mN rms, {part.tau * 1e3:.3g} ms"
