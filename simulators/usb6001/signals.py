@@ -96,7 +96,8 @@ class LoadCellSignal:
         self.correlated = (float(correlated[0]), float(correlated[1]))
         self._rng = np.random.default_rng(seed)
         self._ou_rng = np.random.default_rng([seed, 1])
-        self._ou: float | None = None
+        self._ou: float | None = None  # the correlated part at the last sample read ...
+        self._ou_t = 0.0  # ... and that sample's time (s)
         self._t0: float | None = None
         self._state: float | None = None
         #: A dead weight on the cell (N, compressive positive): what a calibration mass adds
@@ -133,8 +134,13 @@ class LoadCellSignal:
             a = math.exp(-dt / tau)
             if self._ou is None:  # the process starts in its stationary state
                 self._ou = rms * float(self._ou_rng.standard_normal())
+            elif t_first - dt > self._ou_t + 1e-9 * dt:  # a gap between reads: the process
+                g = math.exp(-(t_first - dt - self._ou_t) / tau)  # went on meanwhile
+                self._ou = g * self._ou + math.sqrt(1 - g * g) * rms * float(
+                    self._ou_rng.standard_normal())
             z = rms * self._ou_rng.standard_normal(n)
             x, _ = lfilter([math.sqrt(1.0 - a * a)], [1.0, -a], z, zi=[a * self._ou])
             self._ou = float(x[-1])
+            self._ou_t = t_first + (n - 1) * dt
             out = out + x
         return out

@@ -44,3 +44,16 @@ def test_blocks_continue_one_record_and_the_white_stream_is_unchanged():
 def test_a_bad_correlated_part_is_refused():
     with pytest.raises(ValueError, match="correlated noise"):
         _signal(correlated=(1e-3, 0.0))
+
+
+def test_the_correlated_part_goes_on_between_reads():
+    """Reads a correlation time apart are as correlated as the process says, not as if the
+    reads were contiguous."""
+    tau = 0.05
+    ends = []
+    for seed in range(400):
+        signal = _signal(correlated=(1e-3, tau), seed=seed)
+        first = signal.volts(0.0, DT, 1)[0]
+        ends.append((first, signal.volts(3 * tau, DT, 1)[0]))
+    a, b = np.array(ends).T
+    assert np.corrcoef(a, b)[0, 1] == pytest.approx(np.exp(-3.0), abs=0.12)
