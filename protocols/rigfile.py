@@ -5,9 +5,10 @@ Everything is validated on load, before anything connects, by the one configurat
 max_position``), the value as written and what is allowed. A ``[simulator]`` table gives the
 hidden truth of a simulated rig (where the sphere is, its material;
 :mod:`gelrig.instrument.physics.truth`); it is used only when an instrument's transport is
-``simulator``. A force noise measured at bring-up (``[force.chain] noise``) is the twin's
-noise unless ``[simulator] noise`` is given. The built-in rigs in ``protocols/rigs/`` are
-fully simulated, so gelrig runs on a fresh machine with no hardware.
+``simulator``. The noise measured at bring-up (``[force.chain] noise``, ``noise_drift``,
+``noise_correlated``, ``noise_tau``; ``[rheometer] torque_noise``, ``normal_force_noise``) is
+the twin's unless the ``[simulator]`` table gives the same key. The built-in rigs in
+``protocols/rigs/`` are fully simulated, so gelrig runs on a fresh machine with no hardware.
 """
 
 from __future__ import annotations
@@ -17,10 +18,10 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 from gelrig.instrument.contracts.daq import Usb6001Config
-from gelrig.instrument.contracts.loadcell import LoadCellChain
+from gelrig.instrument.contracts.loadcell import NOISE_KEYS, LoadCellChain
 from gelrig.instrument.contracts.rheometer import RheometerConfig
 from gelrig.instrument.contracts.stage import StageConfig
 from gelrig.instrument.core.errors import ConfigError
@@ -28,6 +29,7 @@ from gelrig.instrument.core.fields import Choice, Text, Where, read_toml
 from gelrig.instrument.physics.truth import CompressionTruth, ShearTruth
 from gelrig.protocols.rig import CompressionLimits, ShearLimits
 
+_T = TypeVar("_T", CompressionTruth, ShearTruth)
 RIG_DIR = Path(__file__).parent / "rigs"
 KINDS = ("compression", "shear")
 #: pyvisa backends a rheometer entry may name: pyvisa-py, or an installed IVI/NI-VISA library.
@@ -182,11 +184,8 @@ def parse_rig(root: dict[str, Any], source: str = "<rig>") -> RigSpec:
         if not isinstance(chain, dict):
             raise ConfigError("[force.chain]", chain, "a table is required here", source)
         loadcell = LoadCellChain.from_table(chain, source)
-        truth = CompressionTruth.from_table(sim_table, source)
-        if loadcell.noise is not None and "noise" not in sim_table:
-            # the twin learns from bring-up (issue 30): the noise measured at the rig is
-            # its twin's, unless the [simulator] table sets one
-            truth = dataclasses.replace(truth, noise=loadcell.noise)
+        truth = _learned(CompressionTruth.from_table(sim_table, source), sim_table, loadcell,
+                         NOISE_KEYS)
         return CompressionRigSpec(
             name,
             StageEntry(*stage_link, StageConfig.from_table(stage, source)),
@@ -196,11 +195,21 @@ def parse_rig(root: dict[str, Any], source: str = "<rig>") -> RigSpec:
     rheo_link = _connection(rheo, "rheometer", source)
     backend = Choice("backend", VISA_BACKENDS, "@py").parse(rheo.pop("backend", "@py"),
                                                             Where("rheometer", source))
+    rheo_config = RheometerConfig.from_table(rheo, source)
     return ShearRigSpec(
-        name,
-        RheometerEntry(*rheo_link, RheometerConfig.from_table(rheo, source), backend),
+        name, RheometerEntry(*rheo_link, rheo_config, backend),
         ShearLimits.from_table(limits_table, source),
-        ShearTruth.from_table(sim_table, source), root, source)
+        _learned(ShearTruth.from_table(sim_table, source), sim_table, rheo_config,
+                 ("torque_noise", "normal_force_noise")), root, source)
+
+
+def _learned(truth: _T, sim_table: Mapping[str, Any], measured: object,
+             keys: tuple[str, ...]) -> _T:
+    """The twin learns from bring-up (issue 30): each of ``keys`` measured at the rig (set on
+    ``measured``, a rig-file table) is the truth's, unless the ``[simulator]`` table sets it."""
+    changes = {k: getattr(measured, k) for k in keys
+               if getattr(measured, k) is not None and k not in sim_table}
+    return dataclasses.replace(truth, **changes) if changes else truth
 
 
 def load_rig(path: str | Path) -> RigSpec:

@@ -16,6 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from gelrig.bringup.common import Session, percent
+from gelrig.bringup.noise_model import (
+    BLOCK,
+    Correlated,
+    correlated_part,
+    drift_uncertainty,
+)
 from gelrig.bringup.operator import GRAVITY, MASS_TOLERANCE
 from gelrig.instrument.contracts.loadcell import LoadCellChain
 from gelrig.instrument.core.errors import GelrigError
@@ -46,6 +52,8 @@ class Noise:
     step: float  # quantisation step (V)
     low_band: float  # PSD below 1 Hz over the median PSD (1: white)
     n: int
+    #: the Ornstein-Uhlenbeck part (V), None when not resolved; ``rms`` excludes it
+    correlated: Correlated | None = None
 
 
 def acquire(rig: CompressionRig, seconds: float, rate: float = NOISE_RATE) -> np.ndarray:
@@ -64,7 +72,8 @@ def acquire(rig: CompressionRig, seconds: float, rate: float = NOISE_RATE) -> np
 
 
 def analyse_noise(volts: np.ndarray, rate: float) -> Noise:
-    """Zero, noise, drift, quantisation step and spectrum shape of an unloaded record."""
+    """Zero, noise (white, drift, correlated part), quantisation step and spectrum shape of
+    an unloaded record."""
     from scipy.signal import welch
 
     t = np.arange(volts.size) / rate
@@ -73,11 +82,14 @@ def analyse_noise(volts: np.ndarray, rate: float) -> Noise:
     raw = float(np.std(rest))
     levels = np.diff(np.unique(volts))
     step = float(levels[levels > 1e-9].min()) if np.any(levels > 1e-9) else 0.0
-    rms = float(np.sqrt(max(raw ** 2 - step ** 2 / 12.0, 0.0)))
+    part = correlated_part(rest, rate)
+    slow = part.rms ** 2 if part is not None else 0.0
+    rms = float(np.sqrt(max(raw ** 2 - step ** 2 / 12.0 - slow, 0.0)))
     f, psd = welch(rest, fs=rate, nperseg=min(volts.size, 4096))
     low = psd[(f > 0) & (f < 1.0)]
     ratio = float(np.mean(low) / np.median(psd[f > 0])) if low.size else float("nan")
-    return Noise(float(np.mean(volts)), rms, raw, float(drift), step, ratio, int(volts.size))
+    return Noise(float(np.mean(volts)), rms, raw, float(drift), step, ratio, int(volts.size),
+                 part)
 
 
 def calibration_masses(chain: LoadCellChain) -> list[float]:
@@ -179,14 +191,33 @@ class LoadCellBringup:
         n = self.noise
         rms = n.rms / s
         u = rms * float(np.hypot(1 / np.sqrt(2 * n.n), u_s / s))
-        self.s.found(f"force noise {rms * 1e3:.4f} mN rms through the {how}; drift "
-                     f"{n.drift / s * 1e6:.3g} uN/s; quantisation step {n.step / s * 1e3:.4f} mN")
+        part = n.correlated
+        if part is not None and rms > 0:  # the white part is what the correlated leaves
+            u = float(np.hypot(u, (part.rms / s) ** 2 * part.u_rms / rms))
+        self.s.found(f"force noise {rms * 1e3:.4f} mN rms white through the {how}; drift "
+                     f"{n.drift / s * 1e6:.3g} uN/s; quantisation step {n.step / s * 1e3:.4f} mN; "
+                     + (f"correlated part {part.rms / s * 1e3:.4f} mN rms, {part.tau * 1e3:.3g} ms"
+                        if part else "no correlated part resolved"))
+        record = f"{NOISE_SECONDS:g} s unloaded at {NOISE_RATE:g} Hz"
         self.s.propose("force.chain", "noise", f"{rms * 1e3:.4g} mN",
-                       f"rms of {NOISE_SECONDS:g} s unloaded at {NOISE_RATE:g} Hz, detrended, "
-                       f"q^2/12 removed (q = {n.step / s * 1e3:.3g} mN), through the {how}; "
-                       f"drift {n.drift / s * 1e6:.3g} uN/s; PSD below 1 Hz "
+                       f"white rms of {record}, detrended, q^2/12 "
+                       f"{'and the correlated part ' if part else ''}removed "
+                       f"(q = {n.step / s * 1e3:.3g} mN), through the {how}; PSD below 1 Hz "
                        f"{n.low_band:.2f}x median",
                        f"{u * 1e3:.2g} mN ({percent(u, rms)}, k=1)")
+        u_drift = drift_uncertainty(n.rms, part, NOISE_RATE, NOISE_SECONDS) / s
+        self.s.propose("force.chain", "noise_drift", f"{n.drift / s * 1e6:.4g} uN/s",
+                       f"slope of a line fitted to {record}, through the {how}",
+                       f"{u_drift * 1e6:.2g} uN/s (k=1)")
+        if part is None:
+            return
+        self.s.propose("force.chain", "noise_correlated", f"{part.rms / s * 1e3:.4g} mN",
+                       f"exponential fitted to the autocovariance of {record} in "
+                       f"{BLOCK * 1e3:g} ms means, through the {how}",
+                       f"{part.u_rms * 100:.2g} % (k=1, from the record's length)")
+        self.s.propose("force.chain", "noise_tau", f"{part.tau * 1e3:.4g} ms",
+                       "the same fit's correlation time", f"{part.u_tau * 100:.2g} % (k=1, "
+                       "from the record's length)")
 
     def _mean(self) -> float:
         volts = acquire(self.rig, SETTLE + AVERAGE)

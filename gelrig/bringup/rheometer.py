@@ -5,8 +5,9 @@ The table (drivers/mcr501/commands.py, ADR 0020) is the project's reconstruction
 entry meets the instrument. Requests are the table's own encodings with harmless arguments
 (the lift moves up 1 mm and back, the arm turns at 0.1 rpm for 1 s, an unbounded rotation is
 sent at 0 rpm and stopped at once); each motion is asked for first and watched under the
-rig's interlocks and Stop. Nothing here is written to the rig file: the table lives in code,
-and a difference found is a change to the table (and its simulator) to make by review.
+rig's interlocks and Stop. The torque and normal-force noise are written to the rig file's
+``[rheometer]`` table (the twin's noise from then on); the table lives in code, and a
+difference found is a change to the table (and its simulator) to make by review.
 """
 
 from __future__ import annotations
@@ -143,6 +144,14 @@ class RheometerBringup:
                      f"{np.std(torque) * 1e6:.4g} uN*m rms; normal force zero "
                      f"{np.mean(force) * 1e3:.4g} mN, noise {np.std(force) * 1e3:.4g} mN rms "
                      f"({torque.size} points)")
+        method = (f"standard deviation of {torque.size} points streamed every "
+                  f"{NOISE_INTERVAL * 1e3:g} ms, nothing touching the arm")
+        for key, values, unit, scale in (("torque_noise", torque, "uN*m", 1e6),
+                                         ("normal_force_noise", force, "mN", 1e3)):
+            rms = float(np.std(values))
+            u = rms / np.sqrt(2 * max(values.size - 1, 1))
+            self.s.propose("rheometer", key, f"{rms * scale:.4g} {unit}", method,
+                           f"{u * scale:.2g} {unit} (k=1)")
 
 
 __all__ = ["Check", "RheometerBringup", "check_reply"]

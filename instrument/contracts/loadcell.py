@@ -19,13 +19,17 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar, Protocol, runtime_checkable
 
 from gelrig.instrument.core.errors import InstrumentError, InstrumentTimeout
-from gelrig.instrument.core.fields import Config, Field, param
+from gelrig.instrument.core.fields import Config, Field, Where, param
 from gelrig.instrument.core.identity import Identity
 
 if TYPE_CHECKING:  # numpy is imported when a force is converted: the configuration stays light
     from numpy.typing import ArrayLike
 
     from gelrig.instrument.core.arrays import BoolArray, FloatArray
+
+#: The ``[force.chain]`` keys bring-up measures the noise into; the twin's noise unless the
+#: ``[simulator]`` table sets the same key (issue 30).
+NOISE_KEYS = ("noise", "noise_drift", "noise_correlated", "noise_tau")
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,24 @@ class LoadCellChain(Config):
                                          "subtracts it from the plate travel"))
     noise: float | None = param(Field("noise", "N", None, 0.0, 0.1, optional=True,
                                       help="the force's noise as measured at bring-up (rms, "
-                                           "unloaded; issue 30)"))
+                                           "unloaded; issue 30): its white part"))
+    # The rest of the noise measured at bring-up: a drift, and a correlated (Ornstein-
+    # Uhlenbeck) part of rms ``noise_correlated`` and correlation time ``noise_tau``.
+    noise_drift: float | None = param(Field("noise_drift", "N/s", None, -0.01, 0.01,
+                                            optional=True, help="the unloaded force's drift "
+                                            "as measured at bring-up"))
+    noise_correlated: float | None = param(Field(
+        "noise_correlated", "N", None, 0.0, 0.1, optional=True,
+        help="rms of the noise's correlated part (exponential autocorrelation) as measured at "
+             "bring-up; needs noise_tau"))
+    noise_tau: float | None = param(Field("noise_tau", "s", None, 0.0, 1e4, lo_open=True,
+                                          optional=True, help="correlation time of "
+                                          "noise_correlated"))
+
+    def validate(self, where: Where) -> None:
+        if self.noise_correlated and self.noise_tau is None:
+            raise where.error("noise_correlated", self.noise_correlated,
+                              "needs noise_tau (its correlation time) beside it")
 
     @property
     def sensitivity(self) -> float:

@@ -256,6 +256,15 @@ class RheometerConfig(Config):
                                       help="a rotation ends by itself within this long after "
                                            "gelrig last renewed it (ADR 0201)"))
 
+    # The sensors' noise as measured at bring-up (issue 30): the twin's, unless the
+    # [simulator] table sets its own; None: not measured.
+    torque_noise: float | None = param(Field("torque_noise", "N*m", None, 0.0, 1e-3,
+                                             optional=True, help="torque noise measured at "
+                                             "bring-up (rms, unloaded)"))
+    normal_force_noise: float | None = param(Field("normal_force_noise", "N", None, 0.0, 0.1,
+                                                   optional=True, help="normal-force noise "
+                                                   "measured at bring-up (rms, unloaded)"))
+
     def validate(self, where: Where) -> None:
         if self.gap_min >= self.gap_max:
             raise where.error("gap_min", self.gap_min, f"must be < gap_max = {self.gap_max:g} m")

@@ -128,7 +128,15 @@ class CompressionTruth(_Truth):
     first_touch: float = param(Field("first_touch", "m", 6.2e-3, 0.0, 25e-3,
                                      help="stage position where the plate meets the sphere",
                                      display="mm"))
-    noise: float = param(Field("noise", "N", FORCE_NOISE, 0.0, 0.1, help="force noise (rms)"))
+    noise: float = param(Field("noise", "N", FORCE_NOISE, 0.0, 0.1,
+                               help="force noise (rms of its white part)"))
+    noise_drift: float = param(Field("noise_drift", "N/s", 0.0, -0.01, 0.01,
+                                     help="force drift (from the first sample read)"))
+    noise_correlated: float = param(Field("noise_correlated", "N", 0.0, 0.0, 0.1,
+                                          help="rms of the force noise's correlated part "
+                                               "(Ornstein-Uhlenbeck)"))
+    noise_tau: float = param(Field("noise_tau", "s", 1.0, 0.0, 1e4, lo_open=True,
+                                   help="correlation time of noise_correlated"))
     seed: float = param(SEED)
     unloading: str = param(dataclasses.replace(UNLOADING, help="plate-sphere contact on "
                                                "unloading: the paper's cutoff, or MDR "

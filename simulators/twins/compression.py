@@ -90,8 +90,8 @@ def force_simulator(clock: Clock, plate: StagePlate, truth: CompressionTruth,
     pressed by ``plate``.
 
     ``chain`` is the rig file's ``[force.chain]``; the simulated one is :func:`true_chain`
-    (the truth's rated output, an offset), and the truth's force noise (N rms) reaches the
-    input through the true sensitivity.
+    (the truth's rated output, an offset), and the truth's force noise (white rms, drift,
+    correlated part) reaches the input through the true sensitivity.
     ``daq`` is the ``[force]`` table: the device answers to its name, the load cell is wired to
     its channel.
     """
@@ -100,7 +100,10 @@ def force_simulator(clock: Clock, plate: StagePlate, truth: CompressionTruth,
     return compression_daq(
         clock, plate, first_touch=truth.first_touch, vectorized=True,
         sphere_radius=truth.sphere_diameter / 2, seed=int(truth.seed),
-        chain=real, noise_rms=truth.noise * real.sensitivity, material=truth.material,
+        chain=real, noise_rms=truth.noise * real.sensitivity,
+        noise_drift=truth.noise_drift * real.sensitivity,
+        noise_correlated=(truth.noise_correlated * real.sensitivity, truth.noise_tau),
+        material=truth.material,
         unloading=truth.unloading, channel=daq.channel,
         spec=DeviceSpec(name=daq.device, timing=daq_timing(truth)))
 

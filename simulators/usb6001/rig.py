@@ -30,6 +30,8 @@ def compression_daq(
     sphere_radius: float = R_COMPRESSION,
     chain: LoadCellChain | None = None,
     noise_rms: float = DEFAULT_NOISE_RMS,
+    noise_drift: float = 0.0,
+    noise_correlated: tuple[float, float] = (0.0, 1.0),
     seed: int = 0,
     channel: str = "ai0",
     spec: DeviceSpec | None = None,
@@ -49,5 +51,6 @@ def compression_daq(
         material, sphere_radius, first_touch, plate_position,
         direction=direction, vectorized=vectorized, unloading=unloading,
     )
-    signal = LoadCellSignal(contact, chain or LoadCellChain(offset=SIM_OFFSET), noise_rms, seed)
+    signal = LoadCellSignal(contact, chain or LoadCellChain(offset=SIM_OFFSET), noise_rms, seed,
+                            noise_drift, noise_correlated)
     return SimulatedUsb6001(clock, {channel: signal}, spec=spec, buffer_size=buffer_size)

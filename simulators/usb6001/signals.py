@@ -69,7 +69,10 @@ class LoadCellSignal:
 
     ``chain`` is the true chain of the simulated rig (its offset is what a tare must find);
     the conditioner's bandwidth acts as one pole, exact for a signal held over each sample
-    interval; ``noise_rms`` (V) is seeded white noise added after it.
+    interval; ``noise_rms`` (V) is seeded white noise added after it, with ``drift`` (V/s,
+    from the first sample read) and ``correlated`` = (rms V, correlation time s): an
+    Ornstein-Uhlenbeck process, exact at the sample times, drawn from its own seeded stream
+    (so the white noise of a given seed does not change with it).
     """
 
     def __init__(
@@ -78,13 +81,24 @@ class LoadCellSignal:
         chain: LoadCellChain,
         noise_rms: float = DEFAULT_NOISE_RMS,
         seed: int = 0,
+        drift: float = 0.0,
+        correlated: tuple[float, float] = (0.0, 1.0),
     ):
         if not (math.isfinite(noise_rms) and noise_rms >= 0):
             raise ValueError(f"noise_rms must be >= 0 V, got {noise_rms}")
+        if not (math.isfinite(correlated[0]) and correlated[0] >= 0 and correlated[1] > 0):
+            raise ValueError(f"correlated noise must be (rms >= 0 V, tau > 0 s), got "
+                             f"{correlated}")
         self.contact = contact
         self.chain = chain
         self.noise_rms = float(noise_rms)
+        self.drift = float(drift)
+        self.correlated = (float(correlated[0]), float(correlated[1]))
         self._rng = np.random.default_rng(seed)
+        self._ou_rng = np.random.default_rng([seed, 1])
+        self._ou: float | None = None  # the correlated part at the last sample read ...
+        self._ou_t = 0.0  # ... and that sample's time (s)
+        self._t0: float | None = None
         self._state: float | None = None
         #: A dead weight on the cell (N, compressive positive): what a calibration mass adds
         #: to the contact's force from the next block read on (bring-up, issue 30).
@@ -106,4 +120,27 @@ class LoadCellSignal:
         self._state = float(v[-1])
         if self.noise_rms > 0:
             v += self.noise_rms * self._rng.standard_normal(v.size)
-        return np.asarray(v, dtype=float)
+        return np.asarray(v + self._slow_noise(t_first, dt, v.size), dtype=float)
+
+    def _slow_noise(self, t_first: float, dt: float, n: int) -> FloatArray | float:
+        """The drift and the correlated part at the sample times (0.0 when neither is set)."""
+        out: FloatArray | float = 0.0
+        if self.drift:
+            if self._t0 is None:
+                self._t0 = t_first
+            out = np.asarray(self.drift * (t_first - self._t0 + dt * np.arange(n)), dtype=float)
+        rms, tau = self.correlated
+        if rms > 0:
+            a = math.exp(-dt / tau)
+            if self._ou is None:  # the process starts in its stationary state
+                self._ou = rms * float(self._ou_rng.standard_normal())
+            elif t_first - dt > self._ou_t + 1e-9 * dt:  # a gap between reads: the process
+                g = math.exp(-(t_first - dt - self._ou_t) / tau)  # went on meanwhile
+                self._ou = g * self._ou + math.sqrt(1 - g * g) * rms * float(
+                    self._ou_rng.standard_normal())
+            z = rms * self._ou_rng.standard_normal(n)
+            x, _ = lfilter([math.sqrt(1.0 - a * a)], [1.0, -a], z, zi=[a * self._ou])
+            self._ou = float(x[-1])
+            self._ou_t = t_first + (n - 1) * dt
+            out = out + x
+        return out

@@ -110,7 +110,8 @@ def test_a_declined_step_moves_and_writes_nothing(tmp_path):
     op = made[0]
     # home declined: no stage routine ran, the stage never moved
     assert op.twin.stage.position_at(op.clock.now()) == pytest.approx(start[0], abs=1e-12)
-    assert {item.key for item in outcome.accepted} == {"noise"}  # no gain, no rated output
+    # no gain, no rated output; white noise: no correlated part
+    assert {item.key for item in outcome.accepted} == {"noise", "noise_drift"}
     assert {item.key for item in outcome.declined} == {"offset"}
     assert outcome.written is not None
     text = outcome.written.read_text()
