@@ -139,7 +139,7 @@ class LoadCellSignal:
                 self._ou = g * self._ou + math.sqrt(1 - g * g) * rms * float(
                     self._ou_rng.standard_normal())
             z = rms * self._ou_rng.standard_normal(n)
-            x, _ = lfilter([math.sqrt(1.0 - a * a)], [1.0, -a], z, zi=[a * self._ou])
+            x = first_order(math.sqrt(1.0 - a * a), 0.0, -a, z, a * self._ou)
             self._ou = float(x[-1])
             self._ou_t = t_first + (n - 1) * dt
             out = out + x
