@@ -142,7 +142,10 @@ class LiveFit:
     """
 
     def __init__(self, terms: int, planned: float, rate: float, cadence: float = CADENCE,
-                 min_interval: float = MIN_INTERVAL):
+                 min_interval: float = MIN_INTERVAL, inflation: float = 1.0):
+        #: what the standard errors, forecasts and band are multiplied by: the rig's
+        #: correlated noise (:func:`correlated_inflation`), 1 for white noise
+        self.inflation = inflation
         self.terms = terms
         self.planned = planned
         self.rate = rate
@@ -213,18 +216,43 @@ class LiveFit:
     def _state(self, fit: RelaxationFit, elapsed: float, tb: FloatArray, gb: FloatArray,
                n: FloatArray) -> LiveFitState:
         shown = fit.resolved
-        relative = {f"tau_{k}": shown.stderr.get(f"tau_{k}", math.nan) / r.tau
-                    for k, r in enumerate(shown.relax, 1)}
+        k = self.inflation
+        stderr = {name: k * v for name, v in shown.stderr.items()}
+        relative = {f"tau_{i}": stderr.get(f"tau_{i}", math.nan) / r.tau
+                    for i, r in enumerate(shown.relax, 1)}
         noise = fit.rmse * math.sqrt(fit.n_samples / max(1, fit.n_samples - 1 - 2 * len(fit.relax)))
         horizon = max(self.planned, elapsed)
-        forecast = forecast_relative(fit, noise, horizon, self.rate)
+        forecast = {name: k * v for name, v in
+                    forecast_relative(fit, noise, horizon, self.rate).items()}
         grid = np.linspace(0.0, elapsed, DRAW_POINTS)
-        return LiveFitState(elapsed, self.planned, shown.g_e, shown.relax, dict(shown.stderr),
+        return LiveFitState(elapsed, self.planned, shown.g_e, shown.relax, stderr,
                             max(fit.terms_resolved, 0), fit.not_resolved, fit.n_samples,
-                            relative, forecast, fit.relax, dict(fit.stderr), fit.g_e,
+                            relative, forecast, fit.relax,
+                            {name: k * v for name, v in fit.stderr.items()}, fit.g_e,
                             bin_means(tb, gb, DRAW_POINTS),
                             (grid, model(shown.g_e, shown.relax, grid),
-                             band(shown, tb, n, noise, grid)), noise)
+                             k * band(shown, tb, n, noise, grid)), noise)
+
+
+def correlated_inflation(white: float, correlated: float, tau: float, rate: float,
+                         span: float) -> float:
+    """How much wider the standard error of a mean over ``span`` s of samples at ``rate`` Hz
+    is than a white-noise fit takes it: noise of a white part ``white`` and an
+    Ornstein-Uhlenbeck part ``correlated`` with correlation time ``tau`` (s), both rms (any
+    one unit), as bring-up measures them (issue 30). The fit sees the two parts' total
+    variance per sample and divides it by the samples; the OU part's mean over the span has
+    the variance ``c^2 (2/m) (1/(1-phi) - phi (1 - phi^m) / (m (1-phi)^2))`` instead,
+    ``phi = exp(-1/(rate tau))``, ``m`` the samples: a parameter the fit takes from the
+    whole hold is that much less certain. 1 without a correlated part."""
+    m = max(1.0, rate * span)
+    if not (correlated > 0 and tau > 0 and math.isfinite(m)):
+        return 1.0
+    phi = math.exp(-1.0 / (rate * tau))
+    ou = correlated ** 2 * (2 / m) * (1 / (1 - phi) - phi * (1 - phi ** m) / (m * (1 - phi) ** 2))
+    ou -= correlated ** 2 / m  # the sum counts each sample's own variance twice
+    true = white ** 2 / m + ou
+    assumed = (white ** 2 + correlated ** 2) / m
+    return math.sqrt(max(true / assumed, 1.0))
 
 
 #: Residual noise over the rig's measured white noise above which the white-noise assumption

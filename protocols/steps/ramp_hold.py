@@ -13,7 +13,13 @@ import numpy as np
 
 from gelrig.instrument.analysis.hold import find_hold
 from gelrig.instrument.analysis.hold_analysis import measured_overlap
-from gelrig.instrument.analysis.live_fit import LiveFit, LiveFitState, StopRule, white_noise_check
+from gelrig.instrument.analysis.live_fit import (
+    LiveFit,
+    LiveFitState,
+    StopRule,
+    correlated_inflation,
+    white_noise_check,
+)
 from gelrig.instrument.analysis.quantiser import find_lattice
 from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history
 from gelrig.instrument.core.errors import GelrigError
@@ -387,6 +393,17 @@ class _Tally:
         return self._held_sum / self._held_n if self._held_n else math.nan
 
 
+def _inflation(chain: object, p: RampHoldParams) -> float:
+    """The live fit's error factor for the load cell's correlated noise as confirmed at
+    bring-up (``[force.chain] noise_correlated``, ``noise_tau``; 1 without them)."""
+    corr, tau = getattr(chain, "noise_correlated", None), getattr(chain, "noise_tau", None)
+    if not isinstance(corr, int | float) or not isinstance(tau, int | float):
+        return 1.0
+    white = getattr(chain, "noise", None)
+    return correlated_inflation(float(white) if isinstance(white, int | float) else 0.0,
+                                float(corr), float(tau), p.rate, p.hold)
+
+
 class _LiveHold:
     """The live fit of one hold: turns each block into G(t), refits when due, publishes a
     :class:`FitUpdate`, and (adaptive hold) says when the rule is met."""
@@ -395,14 +412,15 @@ class _LiveHold:
         self.ctx = ctx
         self.p = p
         self.rule = p.stop_rule
-        self.fit = LiveFit(int(p.terms), p.hold, p.rate)
-        self.t0: float | None = None
-        self.met = False
         # the force noise measured at bring-up ([force.chain] noise), if any: what the live
-        # fit's white-noise assumption is checked against (issue 30), once per hold
+        # fit's white-noise assumption is checked against (issue 30), once per hold; its
+        # correlated part widens the live fit's errors (and so lengthens an adaptive hold)
         chain = getattr(ctx.rig.force, "chain", None)
         white = getattr(chain, "noise", None)
         self.white = float(white) if isinstance(white, int | float) else None
+        self.fit = LiveFit(int(p.terms), p.hold, p.rate, inflation=_inflation(chain, p))
+        self.t0: float | None = None
+        self.met = False
         self.checked = False
         self._overlap = math.nan
         self._forces: FloatArray = np.empty(0)  # the latest, for the quantiser's step

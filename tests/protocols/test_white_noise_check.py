@@ -77,3 +77,23 @@ def test_the_check_itself():
     assert white_noise_check(1.0, 1.0) is None
     assert white_noise_check(WHITE_NOISE_RATIO * 1.01, 1.0) is not None
     assert white_noise_check(5.0, float("nan")) is None
+
+
+def test_the_confirmed_correlated_part_widens_the_live_fits_errors(tmp_path):
+    """The hold's live fit takes the factor of the confirmed correlated part (issue 30):
+    its errors, forecasts and hence an adaptive hold's end allow for it."""
+    from gelrig.instrument.analysis.live_fit import correlated_inflation
+    from gelrig.protocols.steps.ramp_hold import RampHoldParams, _inflation
+
+    text = default_rig("compression").read_text().replace(
+        "gain = 1000", 'gain = 1000\nnoise = "0.35 mN"\nnoise_correlated = "0.6 mN"\n'
+                       'noise_tau = "2 s"')
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text)
+    chain = load_rig(rig).force.chain
+    params = RampHoldParams(diameter=18.63e-3, hold=600.0, rate=100.0)
+    factor = _inflation(chain, params)
+    assert factor == pytest.approx(correlated_inflation(0.35e-3, 0.6e-3, 2.0, 100.0, 600.0))
+    assert factor > 15  # 2 s of correlation at 100 Hz: about 400 samples count as one
+    white = load_rig(default_rig("compression")).force.chain
+    assert _inflation(white, params) == 1.0

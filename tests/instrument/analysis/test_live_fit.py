@@ -99,3 +99,44 @@ def test_band_holds_the_truth_and_narrows_as_the_hold_goes_on() -> None:
         assert np.mean(z <= 3.0) >= 0.9
         assert state.data[0].size <= 300
     assert np.median(late.curve[2]) < 0.5 * np.median(early.curve[2])
+
+
+def test_correlated_noise_widens_the_errors_as_the_variance_of_a_mean() -> None:
+    """Issue 30: a load cell with an Ornstein-Uhlenbeck part beside its white noise (as
+    bring-up measures it): the mean over a span is less certain than the white-noise count
+    says, by :func:`correlated_inflation` (checked against 4000 simulated records)."""
+    from scipy.signal import lfilter
+
+    from gelrig.instrument.analysis.live_fit import correlated_inflation
+
+    rate, tau, span, white, corr = 100.0, 0.5, 20.0, 0.35, 0.4
+    m = int(rate * span)
+    phi = math.exp(-1.0 / (rate * tau))
+    rng = np.random.default_rng(7)
+    drive = rng.standard_normal((4000, m)) * corr * math.sqrt(1 - phi * phi)
+    start = phi * corr * rng.standard_normal((4000, 1))
+    ou = lfilter([1.0], [1.0, -phi], drive, axis=1, zi=start)[0]
+    means = (ou + white * rng.standard_normal(ou.shape)).mean(axis=1)
+    measured = float(np.std(means)) / math.sqrt((white**2 + corr**2) / m)
+    assert correlated_inflation(white, corr, tau, rate, span) == pytest.approx(measured,
+                                                                               rel=0.05)
+    assert correlated_inflation(white, 0.0, tau, rate, span) == 1.0
+
+
+def test_a_live_fit_with_an_inflation_reports_errors_that_much_wider() -> None:
+    t = np.arange(0.0, 600.0, 0.01)
+    g = paper.PLATES.modulus(t) + np.random.default_rng(3).normal(0, modulus_noise(), t.size)
+    states = []
+    for k in (1.0, 2.5):
+        fit = LiveFit(1, 600.0, 100.0, inflation=k)
+        fit.add(t, g)
+        state = fit.refit(600.0)
+        assert state is not None
+        states.append(state)
+    plain, wide = states
+    assert wide.g_e == plain.g_e  # the estimates are the same
+    for name, err in plain.stderr.items():
+        assert wide.stderr[name] == pytest.approx(2.5 * err)
+    assert wide.tau_relative == pytest.approx(2.5 * plain.tau_relative)
+    assert wide.forecast["tau_1"] == pytest.approx(2.5 * plain.forecast["tau_1"])
+    assert np.allclose(wide.curve[2], 2.5 * plain.curve[2], equal_nan=True)
