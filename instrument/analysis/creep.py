@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
+from gelrig.instrument.analysis.quantiser import DitheredQuantiser, find_lattice, fit_sigma
 from gelrig.instrument.analysis.relaxation import (
     MAX_CONDITION,
     MAX_RELATIVE_ERROR,
@@ -130,6 +131,36 @@ def _fit(residual: Callable[[FloatArray], FloatArray], p0: list[float], lower: l
     return p, [white, cov], fun
 
 
+#: The window (s) of the running mean whose quantiser bias is taken off the force: long enough
+#: to average the noise over the codes, short against the feedback's corrections.
+DEQUANTISE_S = 0.3
+
+
+def _dequantised(t: FloatArray, force: FloatArray) -> FloatArray:
+    """The force with the ADC's expected error taken off where it is slow: below one code of
+    noise (0.3 mN on the USB-6001 at the rig's range) the codes' mean is not the force but
+    ``x + b(x)`` (ADR 0270), and a creep holds the force near one level for its whole hold,
+    so ``b`` stays put and reads as a change of modulus (tau_1 0.5 % short at 0.1 mN). The
+    noise is read off the record (``fit_sigma``), ``x`` solved from the running mean by
+    Newton steps on ``x + b(x) = mean``; where the mean moves by a code within the window
+    (the loading) the codes dither themselves and nothing is taken off. Unquantised records
+    are returned as they are."""
+    lattice = find_lattice(force)
+    if lattice is None or force.size < 8:
+        return force
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    width = max(3, round(DEQUANTISE_S / dt)) if dt > 0 else 3
+    kernel = np.ones(width)
+    mean = (np.convolve(force, kernel, mode="same")
+            / np.convolve(np.ones(force.size), kernel, mode="same"))
+    quantiser = DitheredQuantiser(lattice, fit_sigma(lattice, mean, force))
+    x = mean.copy()
+    for _ in range(4):
+        x = x - (x + quantiser.bias(x) - mean) / (1.0 + quantiser.slope(x))
+    slow = np.abs(np.gradient(mean, t)) * DEQUANTISE_S < lattice.step
+    return np.asarray(force + np.where(slow, x - mean, 0.0), dtype=float)
+
+
 def _input_errors(t: FloatArray, delta: FloatArray, force: FloatArray, start: int,
                   radius: float, nu: float, loading: int | None, inputs: Uncertain
                   ) -> dict[str, float]:
@@ -189,8 +220,11 @@ def fit_creep(
     docs/decisions/0160). Raises ConfigError when there is nothing to fit."""
     t_all = np.asarray(t, dtype=float)
     d_all = np.asarray(delta, dtype=float)
-    f_all = np.asarray(force, dtype=float)
+    f_raw = np.asarray(force, dtype=float)
     first = start if loading is None else loading
+    f_all = f_raw.copy()
+    if np.all(np.isfinite(f_raw[first:])) and np.all(np.isfinite(t_all[first:])):
+        f_all[first:] = _dequantised(t_all[first:], f_raw[first:])
     tt, d, f = t_all[start:], d_all[start:], f_all[start:]
     ok = np.isfinite(tt) & np.isfinite(d) & np.isfinite(f) & (d > 0)
     if np.count_nonzero(ok) < MIN_HOLD_SAMPLES or not ok.all():
