@@ -9,9 +9,13 @@ import statistics
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
+from numpy.typing import NDArray
+
 from gelrig.instrument.analysis.relaxation import estimate_first_touch
-from gelrig.instrument.core.errors import InstrumentError
+from gelrig.instrument.core.errors import ConfigError, InstrumentError
 from gelrig.instrument.core.fields import Field, param
+from gelrig.instrument.physics.contact import FloatArray
 from gelrig.protocols.caps import stage_position_error, stage_speed_error
 from gelrig.protocols.context import StepContext
 from gelrig.protocols.rig import CompressionLimits, CompressionRig
@@ -156,9 +160,12 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
             trusted = cols["position_flag"][: crossing + 1] == 0  # flagged: not where it was
             approach = (cols["position_m"][: crossing + 1][trusted],
                         cols["force_N"][: crossing + 1][trusted])
-            touch = estimate_first_touch(*approach).position
-            if not math.isfinite(touch) or touch > z_cross:
-                raise InstrumentError(f"first-touch fit failed on approach {attempt + 1}")
+            touch = _touch_of(*approach, z_cross)
+            if touch is None:
+                raise InstrumentError(
+                    f"first-touch fit failed on approach {attempt + 1}: no touch between "
+                    f"the approach's start and the crossing at {z_cross * 1e3:.4f} mm (a "
+                    "noisy or drifting force: raise the threshold or probe a shorter way)")
             estimates.append(touch)
             crossings.append(z_cross)
             rig.first_touch = touch  # where a safe stop retracts from
@@ -171,3 +178,29 @@ class CompressionContactSearch(StepDefinition[CompressionRig, SearchParams, Sear
         ctx.progress(1.0, 0.0, 0.0, f"first touch {first_touch * 1e3:.4f} mm "
                      f"(spread {spread * 1e6:.1f} um)", first_touch_m=first_touch)
         return SearchResult(first_touch, spread, estimates, crossings, offset)
+
+
+#: The approach the first-touch fit uses, before the touch: this many times the travel from
+#: touch to the crossing, and at least :data:`MIN_WINDOW` (m). Millimetres of probing before
+#: it hold only the baseline, and a baseline that wanders (a load cell's slow noise) over
+#: them pulls the fit (a touch 77 mm early on a 0.5 mN, 0.5 s correlated part).
+WINDOW_REACHES = 3.0
+MIN_WINDOW = 0.2e-3
+
+
+def _touch_of(z: FloatArray, f: FloatArray, z_cross: float) -> float | None:
+    """First touch on one approach (m), fitted on the window before the crossing; None when
+    no fit puts it on the approach (between its first sample and the crossing)."""
+    def fitted(keep: NDArray[np.bool_]) -> float | None:
+        try:
+            touch = estimate_first_touch(z[keep], f[keep]).position
+        except ConfigError:
+            return None
+        lowest = float(np.min(z[keep]))
+        return touch if math.isfinite(touch) and lowest <= touch <= z_cross else None
+
+    whole = fitted(np.ones(z.size, dtype=bool))
+    reach = z_cross - whole if whole is not None else 1e-3
+    keep = z >= z_cross - max((WINDOW_REACHES + 1) * reach, MIN_WINDOW)
+    windowed = fitted(keep) if np.count_nonzero(keep) >= 8 else None
+    return windowed if windowed is not None else whole
