@@ -483,6 +483,19 @@ def _se(fit: dict[str, Any], name: str) -> str:
     return f" +- {value:.2g}" if isinstance(value, int | float) else " +- undetermined"
 
 
+def _term(fit: dict[str, Any], i: int, r: dict[str, Any]) -> str:
+    """``G_i ... Pa, tau_i ... s`` with standard errors, G_i the material's (ramp-corrected)
+    where the fit carries it."""
+    from gelrig.instrument.analysis.relaxation import shown_amplitude
+
+    g, note = shown_amplitude(fit, i, float(r["G"]))
+    se = (fit.get("stderr") or {}).get(f"G_{i}")
+    scaled = {"stderr": {f"G_{i}": se * g / float(r["G"])}} \
+        if isinstance(se, int | float) and r["G"] else fit
+    return (f"G_{i} {g:.0f}{_se(scaled, f'G_{i}')} Pa{note}, tau_{i} {r['tau']:.0f}"
+            f"{_se(fit, f'tau_{i}')} s")
+
+
 def fit_lines(fits: list[dict[str, Any]]) -> list[str]:
     """run.json's fits of a hold as end-of-run lines: each term count once, with standard
     errors; a count the data do not resolve is ``not resolved: <reason>``, without values."""
@@ -497,8 +510,7 @@ def fit_lines(fits: list[dict[str, Any]]) -> list[str]:
             why = fit.get("not_resolved") or "not every term is resolved"
             out.append(f"{requested}-term fit: not resolved: {why}")
             continue
-        terms = ", ".join(f"G_{i} {r['G']:.0f}{_se(fit, f'G_{i}')} Pa, tau_{i} {r['tau']:.0f}"
-                          f"{_se(fit, f'tau_{i}')} s" for i, r in enumerate(fit["relax"], 1))
+        terms = ", ".join(_term(fit, i, r) for i, r in enumerate(fit["relax"], 1))
         out.append(f"{requested}-term fit: G_e {fit['G_e']:.0f}{_se(fit, 'G_e')} Pa, {terms}")
     return out
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -543,6 +543,21 @@ def with_ramp_correction(fit: RelaxationFit, t_load: ArrayLike, delta_load: Arra
     corrected = ramp_corrected(fit, t_load, delta_load)
     extra = {**fit.extra, "relax_ramp_corrected": [{"G": r.g, "tau": r.tau} for r in corrected]}
     return replace(fit, extra=extra, fewer=fewer)
+
+
+def shown_amplitude(fit_dict: Mapping[str, Any], k: int, at_hold: float) -> tuple[float, str]:
+    """The amplitude of term ``k`` (1-based) to show of a fit (its JSON form or ``extra``):
+    the material's, corrected for relaxation during the ramp, when the fit carries it, with
+    a note of the hold-start amplitude the fit itself has (``at_hold``, Pa), else that one.
+    A hold's fitted G_1 is the amplitude left at its start, 0.8 % below the material's on
+    the paper's ramp: shown bare beside a material's G_1 it reads as a bias."""
+    corrected = fit_dict.get("relax_ramp_corrected")
+    if isinstance(corrected, Sequence) and len(corrected) >= k and \
+            isinstance(corrected[k - 1], Mapping):
+        g = float(corrected[k - 1].get("G", math.nan))
+        if math.isfinite(g):
+            return g, f" (ramp-corrected; {at_hold:.0f} at the hold's start)"
+    return at_hold, ""
 
 
 def ramp_corrected(

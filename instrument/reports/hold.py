@@ -12,7 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from gelrig.instrument.analysis.hold_analysis import HoldAnalysis
-from gelrig.instrument.analysis.relaxation import UNDETERMINED, RelaxationFit, format_stderr
+from gelrig.instrument.analysis.relaxation import (
+    UNDETERMINED,
+    RelaxationFit,
+    format_stderr,
+    shown_amplitude,
+)
+from gelrig.instrument.physics.material import RelaxationTerm
 from gelrig.instrument.reports.document import Column, Section, Table
 from gelrig.instrument.reports.figures import plot_hold_fits
 
@@ -127,9 +133,14 @@ def fit_line(fit: RelaxationFit) -> str:
     if not fit.is_resolved:
         return f"{len(fit.relax)}-term: not resolved: {fit.reason}"
     err = fit.stderr
-    text = "; ".join(f"G_{k} {r.g:.0f} +- {format_stderr(err.get(f'G_{k}', math.nan))} Pa, "
-                     f"tau_{k} {r.tau:.0f} +- {format_stderr(err.get(f'tau_{k}', math.nan))} s"
-                     for k, r in enumerate(fit.relax, 1))
+
+    def term(k: int, r: RelaxationTerm) -> str:
+        g, note = shown_amplitude(fit.extra, k, r.g)
+        se = err.get(f"G_{k}", math.nan) * (g / r.g if r.g else 1.0)
+        return (f"G_{k} {g:.0f} +- {format_stderr(se)} Pa{note}, "
+                f"tau_{k} {r.tau:.0f} +- {format_stderr(err.get(f'tau_{k}', math.nan))} s")
+
+    text = "; ".join(term(k, r) for k, r in enumerate(fit.relax, 1))
     line = (f"{len(fit.relax)}-term: G_e {fit.g_e:.0f} +- "
             f"{format_stderr(err.get('G_e', math.nan))} Pa; {text}; rmse {fit.rmse:.3g} Pa")
     return line + (f" -- {fit.not_resolved}" if fit.not_resolved else "")

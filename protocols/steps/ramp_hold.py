@@ -21,7 +21,7 @@ from gelrig.instrument.analysis.live_fit import (
     white_noise_check,
 )
 from gelrig.instrument.analysis.quantiser import find_lattice
-from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history
+from gelrig.instrument.analysis.relaxation import fit_hold, modulus_history, shown_amplitude
 from gelrig.instrument.core.errors import GelrigError
 from gelrig.instrument.core.fields import Field, Where, param
 from gelrig.instrument.core.units import lab_time
@@ -160,7 +160,11 @@ def fit_brief(fit: Mapping[str, Any]) -> str:
 
     terms = [pm("G_e", float(fit["G_e"]), "Pa")]
     for i, term in enumerate(relax, start=1):
-        terms += [pm(f"G_{i}", float(term["G"]), "Pa"), pm(f"tau_{i}", float(term["tau"]), "s")]
+        g, note = shown_amplitude(fit, i, float(term["G"]))
+        err = se.get(f"G_{i}")
+        if isinstance(err, int | float) and term["G"]:
+            se = {**se, f"G_{i}": err * g / float(term["G"])}
+        terms += [pm(f"G_{i}", g, "Pa") + note, pm(f"tau_{i}", float(term["tau"]), "s")]
     asked = fit.get("terms_requested")
     head = f"{len(relax)}-term fit" + (f" (of {asked} asked)" if asked else "")
     return f"{head} {', '.join(terms)}"

@@ -257,3 +257,19 @@ def test_end_of_run_lines_print_each_fit_once_and_no_unresolved_values():
     assert "7772" not in line and "104" not in line
     assert fit_lines([{"error": "too few samples"}]) == ["1-term fit failed: too few samples"]
 
+
+
+def test_a_holds_g_1_is_shown_as_the_materials_with_the_hold_start_amplitude_beside():
+    """A hold's fitted G_1 is the amplitude left at its start (625 Pa on the paper's ramp);
+    the material's, corrected for relaxation during the ramp, is what a scientist compares
+    with (630 Pa): the line shows that one and says so."""
+    from gelrig.commands.run import fit_lines
+    from gelrig.protocols.steps.ramp_hold import fit_brief
+
+    fit = {"G_e": 7146.0, "relax": [{"G": 624.66, "tau": 1413.0}], "terms_resolved": 1,
+           "resolved": True, "stderr": {"G_e": 1.7, "G_1": 0.16, "tau_1": 0.49},
+           "relax_ramp_corrected": [{"G": 629.98, "tau": 1413.0}]}
+    (line,) = fit_lines([fit])
+    assert line == ("1-term fit: G_e 7146 +- 1.7 Pa, G_1 630 +- 0.16 Pa (ramp-corrected; "
+                    "625 at the hold's start), tau_1 1413 +- 0.49 s")
+    assert "G_1 630 +- 0.16 Pa (ramp-corrected; 625 at the hold's start)" in fit_brief(fit)
