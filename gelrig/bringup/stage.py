@@ -11,6 +11,8 @@ and runs under the rig's interlocks and Stop.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gelrig.bringup.common import Session, percent
@@ -22,6 +24,7 @@ from gelrig.instrument.contracts.stage import (
     StageConfig,
 )
 from gelrig.instrument.core.errors import GelrigError
+from gelrig.instrument.physics.contact import FloatArray
 from gelrig.protocols.rig import CompressionRig
 
 #: APT time unit (s): velocity factor = counts/mm * T * 65536, acceleration factor =
@@ -208,6 +211,27 @@ class StageBringup:
             speed *= self.config.counts_per_mm / self.counts_per_mm
         self.s.found(f"velocity: {speed * 1e3:.4f} mm/s at full speed for {v * 1e3:g} mm/s "
                      f"requested ({(speed / v - 1) * 100:+.2f} %); cap reached")
+        self.s.found(_acceleration_line(t, self.travel * speed / v, speed, a))
+
+
+def _acceleration_line(t: FloatArray, travel: float, speed: float, asked: float) -> str:
+    """The acceleration reached on one full-speed move, from how long the move lasted: a
+    trapezoid over ``travel`` (m, true) at ``speed`` (m/s, measured) takes
+    ``travel / speed + speed / a``; the move's start and end are known to the spacing of the
+    samples that saw it moving, which bounds ``a`` (m/s^2) both ways."""
+    if t.size < 2:
+        return "acceleration: too few samples of the move to time it"
+    step = float(np.median(np.diff(t)))
+    lasted = float(t[-1] - t[0])
+    bounds = [lasted + d - travel / speed for d in (step, -step)]  # time spent ramping
+    if not bounds[0] > 0:
+        return "acceleration: the move was too short to time its ramps"
+    low = speed / bounds[0]
+    high = speed / bounds[1] if bounds[1] > 0 else math.inf
+    verdict = "reached" if low * 0.98 <= asked <= high * 1.02 else "NOT as requested"
+    return (f"acceleration: {low * 1e3:.3g} to "
+            f"{'inf' if math.isinf(high) else f'{high * 1e3:.3g}'} mm/s^2 from the move's "
+            f"{lasted:.2f} s (+- {step:.2f} s) for {asked * 1e3:g} mm/s^2 requested; {verdict}")
 
 
 __all__ = ["StageBringup", "StageBringupError"]

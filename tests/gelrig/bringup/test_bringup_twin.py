@@ -6,6 +6,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gelrig.bringup import runner
@@ -176,3 +177,22 @@ def test_a_sample_left_on_the_plate_trips_the_interlock_and_the_scale_is_not_wri
     assert "stop" in said.split("STOPPED:")[1].lower()
     assert {item.key for item in outcome.declined} == {"direction"}  # found before the trip
     assert outcome.written is None
+
+
+def test_the_velocity_run_times_the_acceleration_reached(tmp_path):
+    """Issue 30: velocity and acceleration limits reached. The full-speed move's duration
+    bounds the acceleration (its ramps), which must hold the rig file's request."""
+    rig = _rig(tmp_path)
+    only = ("stage.scale", "stage.backlash", "loadcell")
+    outcome = runner.run(rig, lambda r, c, s: runner.twin_operator(r, c, s, declines=only))
+    (line,) = [f for f in outcome.findings if f.startswith("acceleration:")]
+    low, high = (float(v) for v in line.split()[1:4:2])
+    assert low <= 4.0 <= high and line.endswith("reached"), line  # 4 mm/s^2 requested
+
+
+def test_an_acceleration_the_move_did_not_reach_is_said():
+    from gelrig.bringup.stage import _acceleration_line
+
+    t = np.arange(0.0, 4.0, 0.01)  # 2.3 mm/s over 5.75 mm took 4 s: 1.5 s of ramps
+    line = _acceleration_line(t, 5.75e-3, 2.3e-3, 4e-3)
+    assert "NOT as requested" in line and line.startswith("acceleration: 1.5")
