@@ -136,3 +136,23 @@ def test_the_normal_cdf_and_density_are_scipy_stats_to_the_bit() -> None:
     z = np.concatenate((np.linspace(-40.0, 40.0, 100_001), [0.0, -0.0, np.inf, -np.inf]))
     assert np.array_equal(ndtr(z), norm.cdf(z))
     assert np.array_equal(_norm_pdf(z), norm.pdf(z))
+
+
+def test_one_sample_from_the_previous_tare_does_not_hide_the_lattice():
+    """The compression ramp's first sample was recorded under the previous tare (2.1 uN
+    off the codes after it): the whole ramp then counted as not quantised and its first
+    touch came out 0.66 um early at 0.05 mN (the whole-rig validate, 2026-11-28)."""
+    from gelrig.instrument.analysis.quantiser import find_lattice
+
+    q, phase = 0.30517578125e-3, 0.12e-3
+    rng = np.random.default_rng(2)
+    codes = np.round(rng.normal(0.0, 3e-3, 30_000) / q)
+    record = codes * q + phase
+    record[0] += 2.1e-6
+    lattice = find_lattice(record)
+    assert lattice is not None
+    assert lattice.step == pytest.approx(q, rel=1e-9)
+    assert (lattice.phase - phase) % q == pytest.approx(0.0, abs=1e-12) or \
+        (phase - lattice.phase) % q == pytest.approx(0.0, abs=1e-12)
+    record[: record.size // 20] += 2.1e-6  # 5 % off: not one lattice
+    assert find_lattice(record) is None
