@@ -508,8 +508,10 @@ class RecordingLines:
     def read_line(self) -> str:
         return self._logged("readline", self.inner.read_line)
 
-    def read_lines(self, n: int) -> list[str]:
-        return self._logged("readlines", lambda: self.inner.read_lines(n), n=n)
+    def read_lines(self, n: int, min_length: int = 1,
+                   rest: Callable[[bytes], int] | None = None) -> list[str]:
+        return self._logged("readlines", lambda: self.inner.read_lines(n, min_length, rest),
+                            n=n)
 
     def discard_input(self) -> None:
         self._logged("discard", self.inner.discard_input)
@@ -543,7 +545,8 @@ class ReplayLines:
     def read_line(self) -> str:
         return str(self._next("readline", "read of a line")["l"])
 
-    def read_lines(self, n: int) -> list[str]:
+    def read_lines(self, n: int, min_length: int = 1,
+                   rest: Callable[[bytes], int] | None = None) -> list[str]:
         return [str(x) for x in self._next("readlines", f"read of {n} lines")["l"]]
 
     def discard_input(self) -> None:
