@@ -6,7 +6,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import threading
 import time
 import weakref
 from collections.abc import Callable
@@ -16,12 +15,10 @@ from pathlib import Path
 from PySide6.QtCore import (
     QByteArray,
     QMetaObject,
-    QObject,
     QSettings,
     Qt,
     QTimer,
     QUrl,
-    Signal,
 )
 from PySide6.QtGui import (
     QAction,
@@ -47,7 +44,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gelrig.gui import dialogs, export, theme, wheelguard
+from gelrig.gui import dialogs, export, offthread, theme, wheelguard
 from gelrig.gui.desk import RigDesk
 from gelrig.gui.fit_panel import FitPanel
 from gelrig.gui.header import Header, StatusLine
@@ -123,12 +120,6 @@ def fit_to_screen(window: QWidget) -> None:
     fit(window, PREFERRED_SIZE)
 
 
-class _Done(QObject):
-    """Carries a worker thread's result back to the GUI thread."""
-
-    ready = Signal(object, object)  # callback, value
-
-
 class MainWindow(QMainWindow):
     """Composes the panels around one :class:`RigDesk`."""
 
@@ -166,9 +157,6 @@ class MainWindow(QMainWindow):
         self.header = Header(self.banner)
         self.stop_button = self.header.stop_button
         self.report_button = self.header.report_button
-        self._done = _Done(self)
-        self._done.ready.connect(lambda fn, value: fn(value),
-                                 Qt.ConnectionType.QueuedConnection)
         self.shown_run: Path | None = None  # the run whose plots the window shows
         self.run_windows: list[RunWindow] = []
         self.last_message: QMessageBox | None = None
@@ -948,15 +936,11 @@ class MainWindow(QMainWindow):
         self.log.add(f"analysing {run} for its report…")
         self.report_button.setEnabled(False)
 
-        def work() -> None:
-            try:
-                analyze(run)
-                result: object = report
-            except Exception as exc:  # shown, not raised: the GUI keeps running
-                result = exc
-            self._done.ready.emit(self._report_ready, result)
+        def work() -> Path:
+            analyze(run)  # an exception is handed to _report_ready, shown, not raised
+            return report
 
-        threading.Thread(target=work, daemon=True, name="gelrig-report").start()
+        offthread.start(work, self._report_ready, name="gelrig-report")
 
     def _report_ready(self, result: object) -> None:
         self.report_button.setEnabled(True)

@@ -10,12 +10,11 @@ since, until. A bad filter is its one line under the filters; the list is left a
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QGridLayout,
@@ -32,6 +31,7 @@ from PySide6.QtWidgets import (
 )
 
 from gelrig.catalog import find_runs
+from gelrig.gui import offthread
 from gelrig.gui.compare_view import CompareView, curves_of
 from gelrig.instrument.core.catalog import select_entries
 from gelrig.instrument.core.errors import ConfigError
@@ -142,9 +142,6 @@ class ResultsBrowser(QWidget):
         self._token = self._list_token = 0
         self.loading = False  # a comparison is being read
         self.refreshing = False  # the list is being read
-        self._loaded = _Loaded(self)
-        self._loaded.ready.connect(self._show, Qt.ConnectionType.QueuedConnection)
-        self._loaded.listed.connect(self._listed, Qt.ConnectionType.QueuedConnection)
         # a minimum of its own: the filters' rows would otherwise set the window's, which
         # must fit 1280x720 at 2x (tests/gui/test_layout.py); the table and plots shrink
         self.setMinimumSize(1, 1)
@@ -169,18 +166,18 @@ class ResultsBrowser(QWidget):
         self._list_token += 1
         token, root, self.refreshing = self._list_token, self.root, True
 
-        def work() -> None:
+        def work() -> tuple[int, list[str], object]:
             warnings: list[str] = []
             try:
                 result: object = find_runs(root, warn=warnings.append, **filters)
             except Exception as exc:  # an unreadable folder: said, the GUI goes on
                 result = exc
-            self._loaded.listed.emit(token, (warnings, result))
+            return token, warnings, result
 
-        threading.Thread(target=work, daemon=True, name="gelrig-runs").start()
+        offthread.start(work, self._listed, name="gelrig-runs")
 
-    def _listed(self, token: int, found: tuple[list[str], object]) -> None:
-        warnings, result = found
+    def _listed(self, found: tuple[int, list[str], object]) -> None:
+        token, warnings, result = found
         for line in warnings:  # each said once, even from a list superseded since
             if self.warn is not None:
                 self.warn(line)
@@ -246,20 +243,20 @@ class ResultsBrowser(QWidget):
         token, self.loading = self._token, True
         self._say(f"reading {len(chosen)} runs…")
 
-        def work() -> None:
+        def work() -> tuple[int, list[dict[str, Any]], object]:
             try:
                 result: object = [curves_of(entry["path"]) for entry in chosen]
             except Exception as exc:  # a damaged step file: said, the GUI goes on
                 result = exc
-            self._loaded.ready.emit(token, (chosen, result))
+            return token, chosen, result
 
-        threading.Thread(target=work, daemon=True, name="gelrig-compare").start()
+        offthread.start(work, self._show, name="gelrig-compare")
 
-    def _show(self, token: int, loaded: tuple[list[dict[str, Any]], object]) -> None:
+    def _show(self, loaded: tuple[int, list[dict[str, Any]], object]) -> None:
+        token, chosen, result = loaded
         if token != self._token:
             return  # a newer comparison was asked for
         self.loading = False
-        chosen, result = loaded
         if isinstance(result, BaseException):
             self._say(f"cannot compare: {type(result).__name__}: {result}", error=True)
             return
@@ -268,9 +265,3 @@ class ResultsBrowser(QWidget):
         self._say("; ".join(notes) if notes else f"{len(chosen)} runs compared",
                   error=bool(notes))
 
-
-class _Loaded(QObject):
-    """Carries what a thread read (the list, a comparison) back to the GUI thread."""
-
-    ready = Signal(int, object)
-    listed = Signal(int, object)

@@ -6,16 +6,15 @@ otherwise it is the results the run stored in run.json (fits, first touch, passe
 
 from __future__ import annotations
 
-import contextlib
-import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt
 from PySide6.QtGui import QCloseEvent, QFontDatabase
 from PySide6.QtWidgets import QApplication, QMainWindow, QPlainTextEdit, QSplitter, QWidget
 
+from gelrig.gui import offthread
 from gelrig.gui.fmt import quantity
 from gelrig.gui.plots import LivePlots, plots_for
 from gelrig.gui.rundata import RunData
@@ -158,8 +157,6 @@ def fit_to_screen(window: QWidget, preferred: tuple[int, int]) -> None:
 class RunWindow(QMainWindow):
     """Plots and summary of one run directory (the analysis service's, else run.json's)."""
 
-    _analysis = Signal(str)
-
     def __init__(self, path: Path, analyze: Callable[[Path], str] | None = None,
                  parent: QWidget | None = None):
         super().__init__(parent)
@@ -176,8 +173,16 @@ class RunWindow(QMainWindow):
         self.analysed = analyze is None
         if analyze is not None:  # fits can take seconds: off the GUI thread
             self.summary.setPlainText(f"analysing…\n\nstored results:\n{self.stored}")
-            self._analysis.connect(self._show_analysis, Qt.ConnectionType.QueuedConnection)
-            threading.Thread(target=self._analyse, args=(analyze,), daemon=True).start()
+            path, stored = self.path, self.stored
+
+            def work() -> str:
+                try:
+                    return analyze(path)
+                except Exception as exc:  # show the stored results rather than nothing
+                    return f"analysis failed ({type(exc).__name__}: {exc}); stored " \
+                           f"results:\n{stored}"
+
+            offthread.start(work, self._show_analysis, name="gelrig-analysis")
         splitter = QSplitter(Qt.Orientation.Vertical)
         splitter.addWidget(self.plots)
         splitter.addWidget(self.summary)
@@ -186,15 +191,6 @@ class RunWindow(QMainWindow):
             widget.setMinimumSize(0, 0)  # the window may shrink to a small screen
         self.setCentralWidget(splitter)
         fit_to_screen(self, RUN_WINDOW_SIZE)
-
-    def _analyse(self, analyze: Callable[[Path], str]) -> None:
-        try:
-            text = analyze(self.path)
-        except Exception as exc:  # show the stored results rather than nothing
-            text = f"analysis failed ({type(exc).__name__}: {exc}); stored results:\n" \
-                   f"{self.stored}"
-        with contextlib.suppress(RuntimeError):  # the window may be gone
-            self._analysis.emit(text)
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt override)
         """Let go of the run's samples and curves at once (an analysis thread may still
