@@ -35,6 +35,7 @@ from gelrig.simulators.usb6001 import (
     start_server,
 )
 from gelrig.simulators.usb6001.device import DOCUMENTED, DaqTiming
+from gelrig.simulators.usb6001.rig import compression_daq
 from gelrig.simulators.usb6001.servicer import NOT_SIMULATED, Usb6001Servicer
 
 LSB = DeviceSpec().lsb
@@ -315,3 +316,35 @@ def test_event_stream_ends_when_the_task_is_cleared(sim: Served) -> None:
     start = time.monotonic()
     task.close()
     assert time.monotonic() - start < 5.0
+
+
+def test_an_nidaqmx_script_reads_the_load_cells_drift_and_correlated_noise() -> None:
+    """The noise beyond white that bring-up learns (issue 30) reaches an NI user's own script
+    through the wire as the model says: the drift's slope, the Ornstein-Uhlenbeck part's rms
+    and correlation time, on the 14-bit lattice."""
+    drift, rms, tau = 0.05, 0.02, 0.05  # V/s, V, s
+    clock = VirtualClock()
+    device = compression_daq(clock, lambda t: -1e-3, 0.0, noise_rms=0.0, noise_drift=drift,
+                             noise_correlated=(rms, tau), seed=3)  # the plate far off
+    server = start_server(device)
+    channel = server.channel()
+    try:
+        options = nidaqmx.GrpcSessionOptions(grpc_channel=channel, session_name="")
+        with nidaqmx.Task(grpc_options=options) as task:
+            task.ai_channels.add_ai_voltage_chan("Dev1/ai0", min_val=-10.0, max_val=10.0)
+            task.timing.cfg_samp_clk_timing(1000.0, sample_mode=AcquisitionType.FINITE,
+                                            samps_per_chan=20_000)
+            v = np.asarray(task.read(READ_ALL_AVAILABLE, timeout=60.0))
+    finally:
+        channel.close()
+        server.stop()
+    assert len(v) == 20_000
+    steps = (v - v[0]) / LSB
+    assert np.allclose(steps, np.round(steps), atol=1e-6)  # the ADC's codes
+    t = np.arange(len(v)) * 1e-3
+    slope, _ = np.polyfit(t, v, 1)
+    assert slope == pytest.approx(drift, rel=0.1)  # the OU part's slope error: ~2.5 mV/s
+    rest = v - np.polyval(np.polyfit(t, v, 1), t)
+    assert np.std(rest) == pytest.approx(rms, rel=0.15)
+    lag = round(tau / 1e-3)
+    assert np.corrcoef(rest[:-lag], rest[lag:])[0, 1] == pytest.approx(np.exp(-1.0), abs=0.1)
