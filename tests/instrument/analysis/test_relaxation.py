@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from gelrig.instrument.analysis.relaxation import (
+    _grid_batched,
+    _grid_each,
     contact_length,
     estimate_first_touch,
     fit_hold,
@@ -16,7 +18,7 @@ from gelrig.instrument.analysis.relaxation import (
 from gelrig.instrument.core.errors import ConfigError
 from gelrig.instrument.physics import paper
 from gelrig.instrument.physics.compression import ramp_hold
-from gelrig.instrument.physics.contact import Material, normal_force
+from gelrig.instrument.physics.contact import Material, RelaxationTerm, normal_force
 
 R, D, V = paper.R_COMPRESSION, paper.DEPTH_HOLD, paper.RAMP_SPEED
 
@@ -219,3 +221,25 @@ def test_first_touch_after_millimetres_of_noisy_probing(seed):
     end = int(np.argmax(noisy > 5e-3))
     found = estimate_first_touch(z[:end + 1], noisy[:end + 1])
     assert abs(found.position - touch) < 4 * found.stderr + 1e-6, (found.position, found.stderr)
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_the_batched_grid_search_starts_where_the_one_at_a_time_search_does(seed):
+    """The grid of time constants solved at once (normal equations, then a shortlist solved
+    one at a time) picks the same combination and amplitudes as solving each combination by
+    itself (issue 31): over materials, spans, bin counts and noise from 0.3x to 1000x the
+    paper's."""
+    rng = np.random.default_rng(seed)
+    material = (paper.PLATES, paper.SHELL, Material(5000.0, (RelaxationTerm(800.0, 30.0),)),
+                Material(5000.0))[seed % 4]
+    span, bins = float(rng.choice([20.0, 300.0, 3000.0])), int(rng.choice([50, 200, 600]))
+    t = np.linspace(0.0, span, bins) + rng.uniform(0.0, 1.0)
+    g = material.modulus(t) + rng.normal(0.0, 5.0 * float(rng.choice([0.3, 10, 1000])), bins)
+    for terms in (1, 2):
+        dt = float(np.median(np.diff(t)))
+        taus = np.geomspace(max(3 * dt, span * 1e-4), 20 * span, 60 if terms == 1 else 32)
+        batched, each = _grid_batched(t, g, taus, terms), _grid_each(t, g, taus, terms)
+        assert (batched is None) == (each is None)
+        if each is not None:
+            assert batched[0] == each[0]
+            assert np.array_equal(batched[1], each[1])
