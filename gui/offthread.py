@@ -106,15 +106,21 @@ def qt_objects_held(fn: Callable[..., Any]) -> list[str]:
     return [type(obj).__name__ for obj in held if isinstance(obj, QObject)]
 
 
+def refuse_qt(work: Callable[..., Any]) -> None:
+    """Raise ``TypeError`` naming the Qt objects ``work`` holds directly: work meant for a
+    worker thread must hold none."""
+    held = qt_objects_held(work)
+    if held:
+        raise TypeError(f"work for a thread holds Qt objects ({', '.join(held)}): "
+                        "give it plain values and take the result on the GUI thread")
+
+
 def start(work: Callable[[], object], done: Callback, name: str) -> int:
     """Run ``work`` on a new daemon thread; ``done(result)`` on the GUI thread, where the
     result is what ``work`` returned or the exception it raised. ``work`` must hold no Qt
     object (checked: a ``TypeError`` names what it holds). Returns the token, for
     :func:`forget`."""
-    held = qt_objects_held(work)
-    if held:
-        raise TypeError(f"work for a thread holds Qt objects ({', '.join(held)}): "
-                        "give it plain values and take the result in done()")
+    refuse_qt(work)
     token = expect(done)
 
     def run() -> None:

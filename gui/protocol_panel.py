@@ -30,7 +30,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from gelrig.gui import dialogs
+from gelrig.gui import dialogs, offthread
 from gelrig.gui.protocol_form import ProtocolForm
 from gelrig.gui.run_info_form import RunInfoForm
 from gelrig.gui.sample_form import SampleForm
@@ -527,6 +527,7 @@ class ProtocolPanel(QGroupBox):
             outbox.append((spec, result))
 
         self._outbox = outbox
+        offthread.refuse_qt(work)
         threading.Thread(target=work, name="rehearsal", daemon=True).start()
         self._rehearsal_poll.start()
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
+from gelrig.gui import offthread
 from gelrig.gui.desk import RigDesk
 from gelrig.gui.protocol_panel import Rehearse
 from gelrig.gui.queue_items import (
@@ -163,6 +164,7 @@ class QueueRunner(QObject):
                 outbox.append(f"{type(exc).__name__}: {exc}")
 
         self._outbox, self._pending = outbox, (item, procedure, info)
+        offthread.refuse_qt(work)
         threading.Thread(target=work, name="queue-rehearsal", daemon=True).start()
         self._poll.start()
 
