@@ -29,7 +29,7 @@ from PySide6.QtWidgets import (
 
 from gelrig.catalog import LoadedRun, load_run
 from gelrig.compare import HoldCurve, compare_rows, hold_curves, pass_peaks
-from gelrig.gui.plots import colour, make_plot
+from gelrig.gui.plots import colour, legend_html, make_plot
 
 #: The panels: key, title, x (name, SI unit), y (name, SI unit).
 PANELS = (("force_t", "force in each hold", ("time from the step's start", "s"),
@@ -74,6 +74,13 @@ class CompareView(QWidget):
         self.note = QLabel("select two runs or more and press Compare")
         self.note.setWordWrap(True)
         layout.addWidget(self.note)
+        # one legend for every panel, above them: inside a plot it lay over some run's curve
+        # (runs of other depths leave no corner free; seen at 2x)
+        self.legend = QLabel("")
+        self.legend.setWordWrap(True)
+        self.legend.setObjectName("compareLegend")
+        self.legend_entries: list[tuple[str, Qt.PenStyle, str]] = []
+        layout.addWidget(self.legend)
         split = QSplitter(Qt.Orientation.Vertical)
         holder = QWidget()
         self.grid = QGridLayout(holder)
@@ -81,9 +88,6 @@ class CompareView(QWidget):
         self.plots: dict[str, pg.PlotWidget] = {}
         for key, title, x, y in PANELS:
             plot = make_plot(title, x, y)
-            # where the curves seldom are: below the holds' plateau, above the ramp's foot
-            plot.addLegend(offset=(5, 5) if key == "force_z" else (-5, -5),
-                           labelTextSize="8pt")
             plot.setObjectName(f"compare_{key}")
             self.plots[key] = plot
         self.table = QTableWidget(0, 0)
@@ -109,12 +113,11 @@ class CompareView(QWidget):
         returns notes on runs with nothing to draw."""
         for plot in self.plots.values():
             plot.getPlotItem().clear()
-            legend = plot.getPlotItem().legend
-            if legend is not None:
-                legend.clear()
         notes = []
+        self.legend_entries = []
         for k, run in enumerate(runs):
             pen_colour = colour(k)
+            self.legend_entries.append((pen_colour, Qt.PenStyle.SolidLine, run.label))
             for n, hold in enumerate(run.holds):
                 pen = pg.mkPen(pen_colour, width=1.5, style=_STYLES[n % len(_STYLES)])
                 name = run.label if n == 0 else None
@@ -130,6 +133,7 @@ class CompareView(QWidget):
             if not run.holds and not any(index.size for index, _h, _v in run.ladders):
                 notes.append(f"{run.name}: no hold or ladder recorded")
         self._arrange()
+        self.legend.setText(legend_html(self.legend_entries))
         self._fill_table(compare_rows(entries))
         self.note.setText("; ".join(notes) if notes else
                           f"{len(runs)} runs overlaid; values with 95 % intervals below")

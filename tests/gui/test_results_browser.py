@@ -93,6 +93,13 @@ def test_two_runs_overlay_as_two_curves_with_their_values_side_by_side(qtbot, op
     force_t, force_z = view.curves("force_t"), view.curves("force_z")
     assert len(force_t) == 2 and len(force_z) == 2
     assert [c.name() for c in force_t] == ["a1 (gel-A1)", "b2 (gel-B2)"]
+    # one legend above the panels, in the curves' colours; none inside a plot, where it lay
+    # over a run's curve
+    assert [(c, label) for c, _s, label in view.legend_entries] == [
+        (force_t[0].opts["pen"].color().name(), "a1 (gel-A1)"),
+        (force_t[1].opts["pen"].color().name(), "b2 (gel-B2)")]
+    assert "a1 (gel-A1)" in view.legend.text() and view.legend.isVisible()
+    assert all(plot.getPlotItem().legend is None for plot in view.plots.values())
     for curve in force_t + force_z:
         x, y = curve.getOriginalDataset()
         assert x.size > 100 and y.max() > 1e-3  # a hold pressing on the sphere (N)
