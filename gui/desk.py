@@ -131,6 +131,9 @@ class RigDesk(QObject):
         self._bridge: EventBridge | None = None
         self._connecting = False
         self._poll_pending = False
+        # when each instrument last answered inside an idle readout still out (written by
+        # the rig thread as the readout goes, monotonic s)
+        self._answered: dict[str, float] = {}
         self._last_poll = time.monotonic()
         self._monitor = QTimer(self)
         self._monitor.setInterval(round(MONITOR_PERIOD * 1000))
@@ -436,6 +439,10 @@ class RigDesk(QObject):
         self.worker.submit(lambda: self._read(rig), done=self._on_readings,
                            failed=self._on_read_failed)
 
+    def _answered_now(self, key: str) -> None:
+        """On the rig thread, inside a readout: instrument ``key`` answered just now."""
+        self._answered[key] = time.monotonic()
+
     def _on_readings(self, values: dict[str, float], pending: bool = True) -> None:
         if pending:
             self._poll_pending = False
@@ -484,7 +491,11 @@ class RigDesk(QObject):
         busy = self._busy is not None or self._pending_busy
         out = []
         for key in rig.identities:
-            since = now - self.heard.get(key, now)
+            # an answer inside the readout still out counts at once: a stage read first is
+            # not called silent while the readout waits out a dead force input's deadline
+            # (seen under load: "KDC101 silent for 1 s" after the USB-6001 was killed)
+            last = max(self.heard.get(key, now), self._answered.get(key, -math.inf))
+            since = now - last
             error = self.faults.get(key, "")
             if (error and not self.running) or (since > limit and not busy):
                 out.append(Silent(NAMES.get(key, key), float(round(since, 1)), error))
@@ -544,7 +555,10 @@ class RigDesk(QObject):
         self._last_poll = now
         values: dict[str, float] = {"t_s": clock.now()}
         try:
-            values.update(rig.readings(MONITOR_RATE))
+            if isinstance(rig, CompressionRig):
+                values.update(rig.readings(MONITOR_RATE, answered=self._answered_now))
+            else:
+                values.update(rig.readings(MONITOR_RATE))
         except Exception as exc:
             who = source_of(str(exc))
             errors = {key: explain(exc).text for key in rig.identities

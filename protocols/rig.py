@@ -161,12 +161,17 @@ class CompressionRig:
             out["force"] = clock.mapping("force").as_dict()
         return out
 
-    def readings(self, monitor_rate: float = 100.0) -> dict[str, float]:
+    def readings(self, monitor_rate: float = 100.0,
+                 answered: Callable[[str], None] | None = None) -> dict[str, float]:
         """Live values while idle: position, motion, homed, and the latest force (mean of
-        the last 0.1 s; the force input is started at ``monitor_rate`` Hz if it is not)."""
+        the last 0.1 s; the force input is started at ``monitor_rate`` Hz if it is not).
+        ``answered("stage")`` / ``answered("force")`` as each instrument answers (the GUI's
+        heartbeat: a stage that answered is not silent while the force input is waited on)."""
         status = self.stage.status()
         values = {"position_m": self.stage.position(), "moving": float(status.busy),
                   "homed": float(status.homed)}
+        if answered is not None:
+            answered("stage")
         try:
             if not self.monitoring:
                 self.force.start(monitor_rate)
@@ -175,6 +180,8 @@ class CompressionRig:
         except InstrumentError:
             self.monitoring = False  # an overflow or a stopped task: restart next time
             raise
+        if answered is not None:
+            answered("force")
         if len(block):
             tail = max(1, round(0.1 * self.force.rate))
             values["force_N"] = float(np.mean(block.force[-tail:]))

@@ -67,11 +67,19 @@ def find_lattice(values: ArrayLike) -> Lattice | None:
     u = u[np.concatenate(([True], np.diff(u) > 1e-9 * span))]
     if u.size < 3 or u.size > _MAX_DISTINCT * v.size:
         return None
+    # the codes most samples sit on first: a few samples under another tare (a zero that is
+    # a mean of N codes lies on a lattice N times finer) would otherwise make the finest
+    # common lattice of both, with one code in N used, and a quantiser of the wrong step
+    mostly = _mostly_on_lattice(v, u)
+    if mostly is not None:
+        return mostly
     step = float(np.min(np.diff(u)))
     k = (u - u[0]) / step
     codes = np.round(k)
     if float(np.max(np.abs(k - codes))) > _ON_LATTICE:
-        return _mostly_on_lattice(v, u)
+        return None
+    if u.size < _MIN_OCCUPIED * (codes[-1] + 1):  # interleaved lattices, not one
+        return None
     if codes[-1] > 0:  # the step from all codes, not the one smallest difference
         step = float(np.dot(codes, u - u[0]) / np.dot(codes, codes))
     return Lattice(step, float(u[0] % step))
@@ -82,6 +90,10 @@ def find_lattice(values: ArrayLike) -> Lattice | None:
 #: compression ramp) put the whole ramp off the quantised fit (first touch 0.66 um early at
 #: 0.05 mN).
 _MOSTLY = 0.99
+
+#: Fewest of the codes between a record's lowest and highest value that its samples use for
+#: the record to count as on one lattice (a quantised signal with noise uses nearly all).
+_MIN_OCCUPIED = 0.2
 
 
 def _mostly_on_lattice(v: FloatArray, u: FloatArray) -> Lattice | None:

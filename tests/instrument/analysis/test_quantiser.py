@@ -156,3 +156,25 @@ def test_one_sample_from_the_previous_tare_does_not_hide_the_lattice():
         (phase - lattice.phase) % q == pytest.approx(0.0, abs=1e-12)
     record[: record.size // 20] += 2.1e-6  # 5 % off: not one lattice
     assert find_lattice(record) is None
+
+
+@pytest.mark.parametrize("off", [1, 3, 7, 101])
+def test_samples_under_a_tare_of_n_codes_do_not_make_a_lattice_n_times_finer(off):
+    """A tare is the mean of N codes, so a sample recorded under the previous tare sits off
+    the codes by a multiple of step/N: the finest lattice common to both (step/200 for a
+    200-sample tare) used one code in 200, its quantiser had the wrong step, and the ramp's
+    first touch at 0.05 mN was 0.33 um early with a standard error 7x too small (the whole
+    rig's validate, 2026-11-28)."""
+    from gelrig.instrument.analysis.quantiser import find_lattice
+
+    q, phase = 0.30517578125e-3, 0.12e-3
+    rng = np.random.default_rng(off)
+    codes = np.round(rng.normal(0.0, 3e-3, 30_000) / q)
+    record = codes * q + phase
+    record[:3] += off * q / 200  # the ramp's first samples, under the previous tare
+    lattice = find_lattice(record)
+    assert lattice is not None
+    assert lattice.step == pytest.approx(q, rel=1e-9)
+    assert min((lattice.phase - phase) % q, (phase - lattice.phase) % q) < 1e-12
+    record[: record.size // 3] += off * q / 200  # a third under another tare: no one lattice
+    assert find_lattice(record) is None
