@@ -1,8 +1,9 @@
 """Shared test setup: Qt offscreen for every test that touches the GUI, and the fast tier.
 
 The fast tier (`make test-fast`, `pytest -m "not slow"`) leaves out the tests marked slow by
-hand and those listed in ``tests/slow_tests.txt``: node ids of tests that took longer than the
-threshold in a full run (regenerate with ``python tests/slow_tests.py DURATIONS_LOG``).
+hand and those listed in ``tests/slow_tests.txt``: node ids of tests (or whole modules) that
+took longer than the threshold in a full run (regenerate with ``python tests/slow_tests.py
+REPORT``, then ``--merge`` on a report of the fast tier).
 """
 
 import os
@@ -25,5 +26,6 @@ def _listed_slow() -> frozenset[str]:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     slow = _listed_slow()
     for item in items:
-        if item.nodeid in slow or item.nodeid.split("[")[0] in slow:
+        if (item.nodeid in slow or item.nodeid.split("[")[0] in slow
+                or item.nodeid.split("::")[0] in slow):  # a whole module
             item.add_marker(pytest.mark.slow)
