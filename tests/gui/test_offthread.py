@@ -82,12 +82,14 @@ def test_a_rig_task_and_its_result_are_let_go_of_on_the_gui_thread(qtbot):
     def task(held=captured):
         return Sentinel(record)
 
-    def failing(held=Sentinel(record)):
+    doomed = Sentinel(record)
+
+    def failing(held=doomed):
         raise RuntimeError("the stage did not answer")
 
     assert worker.submit(task, done=lambda value: results.append(type(value).__name__))
     assert worker.submit(failing, failed=lambda exc: results.append(str(exc)))
-    del task, failing, captured
+    del task, failing, captured, doomed
     qtbot.waitUntil(lambda: len(results) == 2, timeout=5_000)
     qtbot.waitUntil(lambda: worker.idle, timeout=5_000)
     assert worker.submit(lambda: None)  # its delivery lets go of the finished tasks
