@@ -131,9 +131,6 @@ class RigDesk(QObject):
         self._bridge: EventBridge | None = None
         self._connecting = False
         self._poll_pending = False
-        # when each instrument last answered inside an idle readout still out (written by
-        # the rig thread as the readout goes, monotonic s)
-        self._answered: dict[str, float] = {}
         self._last_poll = time.monotonic()
         self._monitor = QTimer(self)
         self._monitor.setInterval(round(MONITOR_PERIOD * 1000))
@@ -440,8 +437,11 @@ class RigDesk(QObject):
                            failed=self._on_read_failed)
 
     def _answered_now(self, key: str) -> None:
-        """On the rig thread, inside a readout: instrument ``key`` answered just now."""
-        self._answered[key] = time.monotonic()
+        """On the rig thread, inside a readout: instrument ``key`` answered just now. Heard
+        at once, so a stage read first is not called silent while the readout waits out a
+        dead force input's deadline (seen under load: "KDC101 silent for 1 s" after the
+        USB-6001 was killed). One dict item set: atomic under the GIL."""
+        self.heard[key] = time.monotonic()
 
     def _on_readings(self, values: dict[str, float], pending: bool = True) -> None:
         if pending:
@@ -491,11 +491,7 @@ class RigDesk(QObject):
         busy = self._busy is not None or self._pending_busy
         out = []
         for key in rig.identities:
-            # an answer inside the readout still out counts at once: a stage read first is
-            # not called silent while the readout waits out a dead force input's deadline
-            # (seen under load: "KDC101 silent for 1 s" after the USB-6001 was killed)
-            last = max(self.heard.get(key, now), self._answered.get(key, -math.inf))
-            since = now - last
+            since = now - self.heard.get(key, now)
             error = self.faults.get(key, "")
             if (error and not self.running) or (since > limit and not busy):
                 out.append(Silent(NAMES.get(key, key), float(round(since, 1)), error))
@@ -555,10 +551,7 @@ class RigDesk(QObject):
         self._last_poll = now
         values: dict[str, float] = {"t_s": clock.now()}
         try:
-            if isinstance(rig, CompressionRig):
-                values.update(rig.readings(MONITOR_RATE, answered=self._answered_now))
-            else:
-                values.update(rig.readings(MONITOR_RATE))
+            values.update(rig.readings(MONITOR_RATE, answered=self._answered_now))
         except Exception as exc:
             who = source_of(str(exc))
             errors = {key: explain(exc).text for key in rig.identities

@@ -35,6 +35,11 @@ _lock = threading.Lock()
 _tokens = itertools.count(1)
 
 
+def ready() -> None:
+    """On the GUI thread, before a worker may :func:`send`: make the relay if need be."""
+    _the_relay()
+
+
 def _the_relay() -> _Relay:
     global _relay
     if _relay is None:

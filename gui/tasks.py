@@ -74,7 +74,7 @@ class RigThread(QObject):
 
     def __init__(self, parent: QObject | None = None):
         super().__init__(parent)
-        offthread.expect(lambda _value: None)  # the relay is made here, on the GUI thread
+        offthread.ready()  # the relay is made here, on the GUI thread
         self._queue = _Queue()
         self._thread = threading.Thread(target=_serve, args=(self._queue,),
                                         name="gelrig-rig", daemon=True)

@@ -354,13 +354,18 @@ class ShearRig:
         return (Interlock("torque", "torque_Nm", self.limits.max_torque, "N*m"),
                 Interlock("normal force", "normal_force_N", self.limits.max_normal_force, "N"))
 
-    def readings(self, monitor_rate: float = 100.0) -> dict[str, float]:
-        """Live values while idle: gap, arm angle and arc, torque, normal force, motion."""
+    def readings(self, monitor_rate: float = 100.0,
+                 answered: Callable[[str], None] | None = None) -> dict[str, float]:
+        """Live values while idle: gap, arm angle and arc, torque, normal force, motion;
+        ``answered("rheometer")`` once it has answered (as :meth:`CompressionRig.readings`)."""
         rheo = self.rheometer
         status = rheo.status()
-        return {"gap_m": rheo.gap(), "angle_rad": rheo.angle(), "theta_m": rheo.theta(),
-                "torque_Nm": rheo.torque(), "normal_force_N": rheo.normal_force(),
-                "moving": float(status.busy), "gap_referenced": float(status.gap_referenced)}
+        values = {"gap_m": rheo.gap(), "angle_rad": rheo.angle(), "theta_m": rheo.theta(),
+                  "torque_Nm": rheo.torque(), "normal_force_N": rheo.normal_force(),
+                  "moving": float(status.busy), "gap_referenced": float(status.gap_referenced)}
+        if answered is not None:
+            answered("rheometer")
+        return values
 
     def end_monitoring(self) -> None:
         """Nothing streams while idle on this rig."""

@@ -221,8 +221,8 @@ def _design(t: FloatArray, taus: tuple[float, ...]) -> FloatArray:
 
 def _grid_start(t: FloatArray, g: FloatArray, terms: int) -> tuple[float, ...]:
     """Best parameter vector (G_e, G_1, tau_1, ...) over a log grid of time constants: the
-    linear least squares of every combination at once (batched QR), the first cheapest with
-    no negative amplitude kept; one combination at a time where the batch is singular."""
+    first cheapest combination with no negative amplitude, shortlisted by
+    :func:`_grid_batched`; every combination one at a time where that finds none."""
     span = float(t[-1] - t[0])
     dt = float(np.median(np.diff(t))) if t.size > 1 else span
     lo, hi = max(3 * dt, span * 1e-4), 20 * span
@@ -243,8 +243,9 @@ def _grid_start(t: FloatArray, g: FloatArray, terms: int) -> tuple[float, ...]:
 
 def _grid_batched(t: FloatArray, g: FloatArray, taus: FloatArray, terms: int
                   ) -> tuple[tuple[float, ...], FloatArray] | None:
-    """The grid search of :func:`_grid_each`, 15x faster: every combination's normal
-    equations solved at once to shortlist the :data:`_SHORTLIST` cheapest that look valid,
+    """The grid search of :func:`_grid_each` without solving 496 systems one by one (25 ms
+    -> 0.9 ms at 200 bins, 26 -> 14 ms at 600): every combination's normal equations solved
+    at once to shortlist the :data:`_SHORTLIST` cheapest that look valid,
     then those solved one at a time as before, so the start is the one-at-a-time search's
     unless its best lies outside the shortlist. None where the batch is singular."""
     down = taus[::-1]  # tau_1 > tau_2, the order of the one-at-a-time search
@@ -269,7 +270,7 @@ def _grid_batched(t: FloatArray, g: FloatArray, taus: FloatArray, terms: int
         return None
     listed = np.flatnonzero(looks_valid)
     shortlist = np.sort(listed[np.argsort(cost[listed], kind="stable")[:_SHORTLIST]])
-    return _grid_each(t, g, down[::-1], terms, [tuple(combos[c]) for c in shortlist])
+    return _grid_each(t, g, taus, terms, [tuple(combos[c]) for c in shortlist])
 
 
 def _grid_each(t: FloatArray, g: FloatArray, taus: FloatArray, terms: int,
